@@ -1,0 +1,1 @@
+"""Built-in approximators of sbplan, registered through the sbplan entry-point group like any plugin."""

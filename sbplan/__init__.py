@@ -1,0 +1,43 @@
+"""sbplan: obstacle detection using a structured background, and routes around the obstacles.
+
+The top-level names are imported lazily so that ``import sbplan`` stays cheap.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+from .errors import (  # noqa: F401  (re-exported)
+    CalibrationError,
+    ContourError,
+    DetectionError,
+    ImageError,
+    InputError,
+    MapFormatError,
+    PlanningError,
+    PluginError,
+    SbplanError,
+    UnknownStageError,
+)
+
+__version__ = "0.1.0"
+
+#: public name -> module that defines it
+_LAZY: dict[str, str] = {
+    "plugins": "sbplan.plugins",
+}
+
+
+def __getattr__(name: str) -> Any:
+    module_name = _LAZY.get(name)
+    if module_name is None:
+        raise AttributeError(f"module 'sbplan' has no attribute {name!r}")
+    module = importlib.import_module(module_name)
+    value = module if module_name.endswith("." + name) else getattr(module, name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(list(globals()) + list(_LAZY))

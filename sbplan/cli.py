@@ -1,0 +1,61 @@
+"""The ``sbplan`` command.
+
+Each subcommand lives in its own module under :mod:`sbplan.commands` with ``HELP``,
+``add_arguments(parser)`` and ``run(args) -> int``. Command modules import heavy libraries inside
+``run`` so that ``sbplan --help`` stays fast.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+import traceback
+
+from .errors import SbplanError
+
+#: Subcommand name -> module, in the order ``sbplan --help`` lists them.
+COMMANDS = {
+    "plugins": "sbplan.commands.plugins",
+    "bench": "sbplan.commands.bench",
+}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="sbplan",
+        description="Find obstacles on a floor of reference symbols from a ceiling camera, and plan routes around them.",
+    )
+    parser.add_argument("-v", "--verbose", action="store_true",
+                        help="show tracebacks and library log lines (OMPL) on errors")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name, module_name in COMMANDS.items():
+        module = importlib.import_module(module_name)
+        p = sub.add_parser(name, help=module.HELP, description=getattr(module, "DESCRIPTION", module.HELP))
+        module.add_arguments(p)
+        p.set_defaults(_run=module.run)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "_run", None):
+        parser.print_help()
+        return 2
+    try:
+        return int(args._run(args) or 0)
+    except SbplanError as exc:
+        if args.verbose:
+            traceback.print_exc()
+        print(f"sbplan: error: {exc}", file=sys.stderr)
+        return exc.exit_code
+    except KeyboardInterrupt:
+        print("sbplan: interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:
+        return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

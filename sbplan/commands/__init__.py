@@ -1,0 +1,1 @@
+"""One module per ``sbplan`` subcommand (see :mod:`sbplan.cli`)."""

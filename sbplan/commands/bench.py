@@ -1,0 +1,24 @@
+"""``sbplan bench``: the benchmarks. Speed is measured here, never in tests."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+
+HELP = "run a benchmark (match, stages, ...) and print its table"
+
+#: Benchmark name -> module under sbplan.bench.
+BENCHMARKS: dict[str, str] = {}
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    sub = parser.add_subparsers(dest="benchmark", metavar="BENCHMARK", required=True)
+    for name, module_name in BENCHMARKS.items():
+        module = importlib.import_module(module_name)
+        p = sub.add_parser(name, help=module.HELP, description=getattr(module, "DESCRIPTION", module.HELP))
+        module.add_arguments(p)
+        p.set_defaults(_bench=module.run)
+
+
+def run(args: argparse.Namespace) -> int:
+    return args._bench(args)
