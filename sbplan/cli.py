@@ -16,9 +16,26 @@ from .errors import SbplanError
 
 #: Subcommand name -> module, in the order ``sbplan --help`` lists them.
 COMMANDS = {
+    "demo": "sbplan.commands.demo",
+    "calibrate": "sbplan.commands.calibrate",
+    "detect": "sbplan.commands.detect",
+    "plan": "sbplan.commands.plan",
+    "synth": "sbplan.commands.synth",
+    "symbols": "sbplan.commands.symbols",
+    "tui": "sbplan.commands.tui",
     "plugins": "sbplan.commands.plugins",
     "bench": "sbplan.commands.bench",
 }
+
+
+def import_command(module_name: str):
+    """The command module, or None when that module itself is not part of this installation."""
+    try:
+        return importlib.import_module(module_name)
+    except ModuleNotFoundError as exc:
+        if exc.name == module_name:
+            return None
+        raise
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -30,7 +47,9 @@ def build_parser() -> argparse.ArgumentParser:
                         help="show tracebacks and library log lines (OMPL) on errors")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name, module_name in COMMANDS.items():
-        module = importlib.import_module(module_name)
+        module = import_command(module_name)
+        if module is None:
+            continue
         p = sub.add_parser(name, help=module.HELP, description=getattr(module, "DESCRIPTION", module.HELP))
         module.add_arguments(p)
         p.set_defaults(_run=module.run)

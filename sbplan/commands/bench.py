@@ -3,18 +3,25 @@
 from __future__ import annotations
 
 import argparse
-import importlib
+from ..cli import import_command
 
 HELP = "run a benchmark (match, stages, ...) and print its table"
 
 #: Benchmark name -> module under sbplan.bench.
-BENCHMARKS: dict[str, str] = {}
+BENCHMARKS: dict[str, str] = {
+    "stages": "sbplan.bench.stages",
+    "match": "sbplan.bench.match",
+    "detect": "sbplan.bench.detect",
+    "plan": "sbplan.bench.plan",
+}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     sub = parser.add_subparsers(dest="benchmark", metavar="BENCHMARK", required=True)
     for name, module_name in BENCHMARKS.items():
-        module = importlib.import_module(module_name)
+        module = import_command(module_name)
+        if module is None:
+            continue
         p = sub.add_parser(name, help=module.HELP, description=getattr(module, "DESCRIPTION", module.HELP))
         module.add_arguments(p)
         p.set_defaults(_bench=module.run)

@@ -1,0 +1,1 @@
+"""Built-in candidate reference symbols (parametric polygons), registered through the sbplan entry-point group."""
