@@ -26,6 +26,13 @@ __version__ = "0.1.0"
 #: public name -> module that defines it
 _LAZY: dict[str, str] = {
     "plugins": "sbplan.plugins",
+    "calibrate": "sbplan.calibration",
+    "Calibration": "sbplan.calibration",
+    "detect": "sbplan.detection",
+    "Detection": "sbplan.detection",
+    "plan": "sbplan.planning",
+    "replan": "sbplan.planning",
+    "Route": "sbplan.planning",
 }
 
 
