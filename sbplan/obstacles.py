@@ -1,0 +1,129 @@
+"""Obstacles from the occupancy image: connected black regions, their outlines and MARs.
+
+Paper section 4.1: the occupancy image's black areas are the obstacles; their contours are
+described as polygons and each gets its minimum-area rectangle (MAR).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+import shapely
+
+from .model import as_points
+
+
+@dataclass(frozen=True, eq=False)
+class Obstacle:
+    """One obstacle. Pixel arrays are ``(x, y)``; metric ones world ``(x, y)`` metres, y up."""
+
+    id: int
+    cells: list[tuple[int, int]]
+    outline_px: np.ndarray  # (K, 2)
+    mar_px: np.ndarray  # (4, 2)
+    outline_m: np.ndarray | None = None
+    mar_m: np.ndarray | None = None
+
+    @property
+    def centre_px(self) -> tuple[float, float]:
+        c = self.mar_px.mean(axis=0)
+        return float(c[0]), float(c[1])
+
+    @staticmethod
+    def _size_angle(rect: np.ndarray) -> tuple[float, float, float]:
+        e1, e2 = rect[1] - rect[0], rect[2] - rect[1]
+        l1, l2 = float(np.hypot(*e1)), float(np.hypot(*e2))
+        long_edge = e1 if l1 >= l2 else e2
+        angle = float(np.degrees(np.arctan2(long_edge[1], long_edge[0])))
+        angle = (angle + 90.0) % 180.0 - 90.0  # in [-90, 90): the long side's direction
+        return max(l1, l2), min(l1, l2), angle
+
+    def to_json(self) -> dict:
+        length, width, angle = self._size_angle(self.mar_px)
+        out = {
+            "id": self.id,
+            "cells": [list(c) for c in self.cells],
+            "outline_px": np.round(self.outline_px, 3).tolist(),
+            "mar_px": np.round(self.mar_px, 3).tolist(),
+            "centre_px": [round(v, 3) for v in self.centre_px],
+            "size_px": [round(length, 3), round(width, 3)],
+            "angle_px_deg": round(angle, 3),
+        }
+        if self.mar_m is not None and self.outline_m is not None:
+            length_m, width_m, angle_m = self._size_angle(self.mar_m)
+            out.update({
+                "outline_m": np.round(self.outline_m, 6).tolist(),
+                "mar_m": np.round(self.mar_m, 6).tolist(),
+                "centre_m": np.round(self.mar_m.mean(axis=0), 6).tolist(),
+                "size_m": [round(length_m, 6), round(width_m, 6)],
+                "angle_m_deg": round(angle_m, 3),
+            })
+        return out
+
+
+def mar_opencv(points: np.ndarray) -> np.ndarray:
+    """Minimum-area rectangle of a point set by OpenCV: its 4 corners (4, 2), in boundary order.
+
+    Built from ``cv2.boxPoints`` (not from the angle, whose range and width/height swap depend on
+    OpenCV's version and the orientation).
+    """
+    pts = as_points(points, name="points", min_points=1).astype(np.float32)
+    return cv2.boxPoints(cv2.minAreaRect(pts)).astype(np.float64)
+
+
+def mar_shapely(points: np.ndarray) -> np.ndarray:
+    """Minimum-area rectangle by shapely (``minimum_rotated_rectangle``): corners (4, 2)."""
+    pts = as_points(points, name="points", min_points=1)
+    rect = shapely.minimum_rotated_rectangle(shapely.MultiPoint(pts))
+    coords = np.asarray(rect.exterior.coords)[:-1] if rect.geom_type == "Polygon" else np.asarray(rect.coords)
+    if len(coords) < 4:  # degenerate (a segment): repeat points to keep the (4, 2) shape
+        coords = np.resize(coords, (4, 2))
+    return coords
+
+
+def find_obstacles(occupancy: np.ndarray, occupied: np.ndarray, grid, *, to_world=None) -> list[Obstacle]:
+    """The connected black regions of an occupancy image as obstacles.
+
+    Parameters
+    ----------
+    occupancy : ndarray of shape (H, W), uint8
+        0 where occupied, 255 elsewhere.
+    occupied : ndarray of shape (rows, cols), bool
+        The occupied cells (to list each obstacle's cells).
+    grid : sbplan.grid.Grid
+    to_world : callable, optional
+        Maps pixel points (N, 2) to world metres (N, 2); when given, metric outlines and MARs are
+        added (the metric MAR is fitted to the metric outline, so it is a true rectangle on the floor
+        even under perspective).
+
+    Returns
+    -------
+    list of Obstacle, numbered from 1 in reading order of their top-left cell.
+    """
+    mask = (occupancy == 0).astype(np.uint8)
+    if not mask.any():
+        return []
+    n_labels, labels = cv2.connectedComponents(mask, connectivity=8)
+    contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    h, w = mask.shape
+    rows, cols = np.nonzero(occupied)
+    centres = grid.centres_px[rows, cols]
+    cx = np.clip(np.rint(centres[:, 0]).astype(int), 0, w - 1)
+    cy = np.clip(np.rint(centres[:, 1]).astype(int), 0, h - 1)
+    cell_label = labels[cy, cx]
+    found = []
+    for contour in contours:
+        outline = contour[:, 0, :].astype(np.float64)
+        x0, y0 = contour[0, 0]
+        label = labels[y0, x0]
+        cells = sorted((int(r), int(c)) for r, c, lab in zip(rows, cols, cell_label) if lab == label)
+        mar = mar_opencv(outline)
+        outline_m = mar_m = None
+        if to_world is not None:
+            outline_m = to_world(outline)
+            mar_m = mar_opencv(outline_m)
+        found.append((cells[0] if cells else (h, w), cells, outline, mar, outline_m, mar_m))
+    found.sort(key=lambda t: t[0])
+    return [Obstacle(i + 1, cells, outline, mar, om, mm) for i, (_, cells, outline, mar, om, mm) in enumerate(found)]
