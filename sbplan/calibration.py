@@ -1,0 +1,362 @@
+"""Calibration on the empty floor (paper section 2.2).
+
+From the reference image: every contour, the length filter, polygon approximation, descriptors and
+centres of area; the reference symbol (given as an image of one symbol, or inferred as the dominant
+repeated shape); the grid fitted to the symbols' centres; and a match threshold derived from the
+data — the distances of the true symbols against those of every other contour — instead of the
+paper's a-priori 0.5.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from . import plugins
+from .errors import CalibrationError, InputError
+from .grid import Grid, fit_grid
+from .imageio import as_gray, load_image, write_json
+from .workspace import Workspace, load_workspace
+
+FORMAT = "sbplan.calibration/1"
+
+#: The stages used when none is named: the fast ones (the paper's OKE and KKA are selectable).
+DEFAULT_STAGES = {
+    "binarizer": "local-mean",
+    "extractor": "opencv",
+    "approximator": "douglas-peucker",
+    "matcher": "fourier",
+    "mapper": "cells",
+}
+
+
+@dataclass(frozen=True, eq=False)
+class Calibration:
+    """Everything detection needs, fitted on a reference image.
+
+    Attributes
+    ----------
+    image_shape : (H, W)
+    stages : dict
+        kind -> ``{"name": ..., "options": {...}}`` for binarizer, extractor, approximator, matcher
+        and mapper.
+    grid : Grid
+    symbol_polygons : list of ndarray (K, 2)
+        The approximated outline of every cell's symbol in the reference, row-major.
+    other_polygons : list of ndarray (K, 2)
+        A sample of the reference's contours that are not symbols (for re-deriving thresholds).
+    descriptor : ndarray (K,)
+        The reference symbol's descriptor under ``stages["matcher"]``.
+    threshold : float
+        A contour matches when its descriptor distance is below this.
+    margin : float
+        Nearest non-symbol distance divided by the farthest symbol distance (> 1 separates).
+    symbol_area_px, symbol_points_range : float, (int, int)
+        Median symbol area, and the range of contour lengths (boundary pixels) kept by the length
+        filter during detection.
+    workspace : Workspace
+    """
+
+    image_shape: tuple[int, int]
+    stages: dict[str, dict[str, Any]]
+    grid: Grid
+    symbol_polygons: list[np.ndarray]
+    other_polygons: list[np.ndarray]
+    descriptor: np.ndarray
+    threshold: float
+    margin: float
+    symbol_area_px: float
+    symbol_points_range: tuple[int, int]
+    workspace: Workspace = field(default_factory=Workspace)
+    stats: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def symbols_expected(self) -> int:
+        return self.grid.rows * self.grid.cols
+
+    def stage(self, kind: str, override: Any = None):
+        """The stage instance of ``kind``: ``override`` (a name or an instance) or the calibrated one."""
+        if override is not None:
+            return plugins.registry().create(kind, override)
+        spec = self.stages[kind]
+        return plugins.registry().create(kind, spec["name"], **spec.get("options", {}))
+
+    def pixels_to_world(self, xy: np.ndarray) -> np.ndarray:
+        """Image pixels ``(x, y)`` (N, 2) -> world metres ``(x, y)`` (N, 2), through the grid."""
+        lattice = self.grid.px_to_lattice(xy)
+        return self.workspace.lattice_to_world(lattice, self.grid.rows)
+
+    def world_bounds(self) -> tuple[float, float, float, float]:
+        """The floor covered by the grid's cells, in metres: (xmin, ymin, xmax, ymax)."""
+        corners = np.array([[-0.5, -0.5], [self.grid.cols - 0.5, -0.5],
+                            [self.grid.cols - 0.5, self.grid.rows - 0.5], [-0.5, self.grid.rows - 0.5]])
+        w = self.workspace.lattice_to_world(corners, self.grid.rows)
+        return float(w[:, 0].min()), float(w[:, 1].min()), float(w[:, 0].max()), float(w[:, 1].max())
+
+    # -- files --------------------------------------------------------------------------------
+    def to_json(self) -> dict:
+        return {
+            "format": FORMAT,
+            "image_shape": list(self.image_shape),
+            "stages": self.stages,
+            "grid": self.grid.to_json(),
+            "symbol": {
+                "descriptor": self.descriptor.tolist(),
+                "threshold": self.threshold,
+                "margin": self.margin,
+                "area_px": self.symbol_area_px,
+                "points_range": list(self.symbol_points_range),
+                "polygons": [np.round(p, 3).tolist() for p in self.symbol_polygons],
+            },
+            "other_polygons": [np.round(p, 3).tolist() for p in self.other_polygons],
+            "workspace": self.workspace.to_json(),
+            "stats": self.stats,
+        }
+
+    @classmethod
+    def from_json(cls, data: Any, *, source: str = "calibration") -> "Calibration":
+        if not isinstance(data, dict) or "format" not in data:
+            raise CalibrationError(f"{source}: not an sbplan calibration file")
+        if data["format"] != FORMAT:
+            raise CalibrationError(
+                f"{source}: calibration format {data['format']!r} is not supported (expected {FORMAT!r}); "
+                "re-run 'sbplan calibrate' on the reference image")
+        try:
+            sym = data["symbol"]
+            return cls(
+                image_shape=(int(data["image_shape"][0]), int(data["image_shape"][1])),
+                stages={k: dict(v) for k, v in data["stages"].items()},
+                grid=Grid.from_json(data["grid"]),
+                symbol_polygons=[np.asarray(p, np.float64) for p in sym["polygons"]],
+                other_polygons=[np.asarray(p, np.float64) for p in data.get("other_polygons", [])],
+                descriptor=np.asarray(sym["descriptor"], np.float64),
+                threshold=float(sym["threshold"]),
+                margin=float(sym["margin"]),
+                symbol_area_px=float(sym["area_px"]),
+                symbol_points_range=(int(sym["points_range"][0]), int(sym["points_range"][1])),
+                workspace=Workspace.from_json(data["workspace"]),
+                stats=dict(data.get("stats", {})),
+            )
+        except CalibrationError:
+            raise
+        except (KeyError, TypeError, ValueError, IndexError) as exc:
+            raise CalibrationError(f"{source}: corrupt calibration file ({type(exc).__name__}: {exc})") from None
+
+    def save(self, path: str | os.PathLike) -> Path:
+        """Write the calibration as JSON, atomically (a failed write never destroys a good file)."""
+        return write_json(path, self.to_json())
+
+
+def load_calibration(path: str | os.PathLike) -> Calibration:
+    import json
+
+    p = Path(path)
+    if not p.is_file():
+        raise CalibrationError(f"{p}: no such calibration file")
+    try:
+        data = json.loads(p.read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise CalibrationError(f"{p}: corrupt calibration file (not JSON: {exc})") from None
+    return Calibration.from_json(data, source=str(p))
+
+
+@dataclass(frozen=True, eq=False)
+class Shapes:
+    """The outer contours of one image that passed the length filter, as polygons."""
+
+    polygons: list[np.ndarray]
+    points: np.ndarray  # number of boundary pixels of each contour
+    areas: np.ndarray
+    centres: np.ndarray  # (n, 2) centre of area (x, y)
+    descriptors: np.ndarray  # (n, K)
+    n_contours: int  # before the length filter
+
+
+def extract_shapes(gray: np.ndarray, *, binarizer, extractor, approximator, matcher,
+                   points_range: tuple[int, int]) -> Shapes:
+    """Binarize, extract, length-filter, approximate and describe the outer contours of an image."""
+    from .geometry import centroid, signed_area
+
+    binary = binarizer.binarize(gray)
+    contours = [c for c in extractor.extract(binary) if not c.is_hole]
+    lo, hi = points_range
+    kept = [c for c in contours if lo <= len(c.points) <= hi]
+    polygons, n_points = [], []
+    for c in kept:
+        poly = approximator.approximate(c)
+        if len(poly) >= 3 and abs(signed_area(poly)) > 0:
+            polygons.append(poly)
+            n_points.append(len(c.points))
+    if polygons:
+        areas = np.array([abs(signed_area(p)) for p in polygons])
+        centres = np.array([centroid(p) for p in polygons], dtype=np.float64).reshape(-1, 2)
+        descriptors = matcher.describe_many(polygons)
+    else:
+        areas, centres = np.zeros(0), np.zeros((0, 2))
+        descriptors = matcher.describe_many([])
+    return Shapes(polygons, np.asarray(n_points, np.int64), areas, centres, descriptors, len(contours))
+
+
+def _stage_spec(stage) -> dict[str, Any]:
+    return {"name": stage.name, "options": stage.config()}
+
+
+def _symbol_descriptor_from_image(symbol: Any, *, binarizer, extractor, approximator, matcher) -> np.ndarray:
+    gray = as_gray(load_image(symbol) if isinstance(symbol, (str, os.PathLike)) else symbol, name="symbol")
+    # An image of one symbol: its largest outer contour is the symbol, whatever the margins.
+    h, w = gray.shape
+    shapes = extract_shapes(gray, binarizer=binarizer, extractor=extractor, approximator=approximator,
+                            matcher=matcher, points_range=(8, 4 * (h + w)))
+    if not shapes.polygons:
+        raise CalibrationError("symbol image: no dark shape found in it")
+    return shapes.descriptors[int(np.argmax(shapes.areas))]
+
+
+def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str | os.PathLike | None = None,
+              cell_size: float | None = None, binarizer: Any = None, extractor: Any = None,
+              approximator: Any = None, matcher: Any = None, mapper: Any = None) -> Calibration:
+    """Calibrate on an image of the empty floor.
+
+    Parameters
+    ----------
+    reference : str, path or ndarray of shape (H, W) or (H, W, 3)
+        The reference image (empty floor, every symbol visible).
+    symbol : str, path or ndarray, optional
+        An image of one reference symbol. When absent, the symbol is inferred as the dominant
+        repeated shape of the reference.
+    workspace : Workspace or path of a workspace.toml / map folder, optional
+        Grid pitch in metres, origin, robot radius, default route.
+    cell_size : float, optional
+        Grid pitch in metres (both directions) when no workspace is given; default 1.0.
+    binarizer, extractor, approximator, matcher, mapper : str or Stage, optional
+        Stage names (or instances); defaults in :data:`DEFAULT_STAGES`.
+
+    Raises
+    ------
+    CalibrationError
+        No symbols, an irregular grid, or no shape that repeats.
+    """
+    gray = as_gray(load_image(reference) if isinstance(reference, (str, os.PathLike)) else reference,
+                   name="reference")
+    if workspace is not None and not isinstance(workspace, Workspace):
+        workspace = load_workspace(workspace)
+    if cell_size is not None:
+        if not cell_size > 0:
+            raise InputError(f"cell_size: must be a positive number of metres, got {cell_size}")
+        base = workspace or Workspace()
+        workspace = replace(base, pitch_m=(float(cell_size), float(cell_size)), origin_m=base.origin_m)
+    workspace = workspace or Workspace()
+    reg = plugins.registry()
+    chosen = {kind: reg.create(kind, given if given is not None else DEFAULT_STAGES[kind])
+              for kind, given in (("binarizer", binarizer), ("extractor", extractor), ("approximator", approximator),
+                                  ("matcher", matcher), ("mapper", mapper))}
+    h, w = gray.shape
+    points_range = (12, max(16, (h + w) // 2))
+    kw = dict(extractor=chosen["extractor"], approximator=chosen["approximator"], matcher=chosen["matcher"])
+    shapes = extract_shapes(gray, binarizer=chosen["binarizer"], points_range=points_range, **kw)
+    members = _symbol_members(shapes, chosen["matcher"], symbol=symbol, chosen=chosen)
+    # Fit the binarizer to the symbol size found and run again: a window of a few symbol sizes
+    # follows the light without swallowing the symbol itself.
+    fit = getattr(chosen["binarizer"], "with_symbol_size", None)
+    if fit is not None:
+        size = float(np.sqrt(np.median(shapes.areas[members])))
+        refit = fit(size * 1.6)
+        if refit != chosen["binarizer"]:
+            chosen["binarizer"] = refit
+            shapes = extract_shapes(gray, binarizer=refit, points_range=points_range, **kw)
+            members = _symbol_members(shapes, chosen["matcher"], symbol=symbol, chosen=chosen)
+    reference_descriptor = np.median(shapes.descriptors[members], axis=0)
+    dist = chosen["matcher"].distance_matrix(shapes.descriptors, reference_descriptor[None, :])[:, 0]
+    grid = fit_grid(shapes.centres[members])
+    threshold, margin = derive_threshold(dist[members], np.delete(dist, members))
+    cells = grid.assign(shapes.centres[members])
+    order = np.argsort(cells[:, 0] * grid.cols + cells[:, 1])
+    symbol_idx = members[order]
+    others = np.setdiff1d(np.arange(len(shapes.polygons)), members)
+    rng = np.random.default_rng(0)  # the sample of other contours is kept small and reproducible
+    sample = rng.choice(others, size=min(len(others), 200), replace=False) if len(others) else others
+    n_points = shapes.points[symbol_idx]
+    stats = {
+        "contours": shapes.n_contours,
+        "after_length_filter": len(shapes.polygons),
+        "symbols": int(len(members)),
+        "symbol_distance_max": float(dist[members].max()),
+        "other_distance_min": float(np.delete(dist, members).min()) if len(others) else None,
+        "rejected_centres_px": np.round(shapes.centres[others][:500], 2).tolist(),
+    }
+    return Calibration(
+        image_shape=(h, w),
+        stages={k: _stage_spec(v) for k, v in chosen.items()},
+        grid=grid,
+        symbol_polygons=[shapes.polygons[i] for i in symbol_idx],
+        other_polygons=[shapes.polygons[i] for i in sample],
+        descriptor=reference_descriptor,
+        threshold=threshold,
+        margin=margin,
+        symbol_area_px=float(np.median(shapes.areas[members])),
+        symbol_points_range=(int(n_points.min() * 0.7), int(np.ceil(n_points.max() * 1.4))),
+        workspace=workspace,
+        stats=stats,
+    )
+
+
+def derive_threshold(symbol_distances: np.ndarray, other_distances: np.ndarray) -> tuple[float, float]:
+    """Match threshold from the reference's own data, and the margin it leaves.
+
+    Symbols in later images are blurrier, noisier and differently lit than in the reference, so the
+    threshold sits well above the symbols' own spread (four times their largest distance) but never
+    beyond halfway to the nearest other contour. Returns ``(threshold, margin)`` where
+    ``margin = nearest other / farthest symbol`` (above 1: the reference separates them).
+    """
+    d_sym = float(np.max(symbol_distances)) if len(symbol_distances) else 0.0
+    d_other = float(np.min(other_distances)) if len(other_distances) else np.inf
+    floor = max(d_sym, 1e-6)
+    threshold = max(4.0 * floor, 0.02)
+    if np.isfinite(d_other):
+        threshold = min(threshold, d_sym + 0.5 * (d_other - d_sym))
+    margin = d_other / floor if np.isfinite(d_other) else float("inf")
+    return float(threshold), float(margin)
+
+
+def _symbol_members(shapes: Shapes, matcher, *, symbol: Any, chosen: dict) -> np.ndarray:
+    """Indices of the shapes that are the reference symbol."""
+    n = len(shapes.polygons)
+    if n == 0:
+        raise CalibrationError("no symbols found in the reference image (no dark shapes of symbol size)")
+    if symbol is not None:
+        ref = _symbol_descriptor_from_image(symbol, binarizer=chosen["binarizer"], extractor=chosen["extractor"],
+                                            approximator=chosen["approximator"], matcher=matcher)
+        d = matcher.distance_matrix(shapes.descriptors, ref[None, :])[:, 0]
+        near = d < getattr(matcher, "default_threshold", 0.5)
+        if not near.any():
+            raise CalibrationError("no symbols found in the reference image: no contour matches the given symbol")
+        # the symbols also share one size: keep those near the median area of the matches
+        area = np.median(shapes.areas[near])
+        members = np.flatnonzero(near & (np.abs(shapes.areas / area - 1) < 0.35))
+    else:
+        members = _dominant_repeated_shape(shapes, matcher)
+    if len(members) < 4:
+        raise CalibrationError(
+            f"no symbol grid found in the reference image: the most repeated shape occurs {len(members)} time(s)")
+    return members
+
+
+def _dominant_repeated_shape(shapes: Shapes, matcher) -> np.ndarray:
+    """The largest group of contours with the same shape and the same size."""
+    d = matcher.distance_matrix(shapes.descriptors, shapes.descriptors)
+    ratio = shapes.areas[:, None] / shapes.areas[None, :]
+    same_size = np.abs(np.log(ratio)) < np.log(1.35)
+    tight = 0.25 * getattr(matcher, "default_threshold", 0.5)
+    alike = (d < tight) & same_size
+    seed = int(np.argmax(alike.sum(axis=1)))
+    members = np.flatnonzero(alike[seed])
+    # widen once around the group's median so the seed's own noise does not decide membership
+    median = np.median(shapes.descriptors[members], axis=0)
+    dm = matcher.distance_matrix(shapes.descriptors, median[None, :])[:, 0]
+    spread = max(float(np.max(dm[members])), 1e-6)
+    area = np.median(shapes.areas[members])
+    return np.flatnonzero((dm <= 2.0 * spread) & (np.abs(np.log(shapes.areas / area)) < np.log(1.35)))

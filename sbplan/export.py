@@ -1,0 +1,139 @@
+"""Files a user can open: overlay picture, occupancy image, GeoJSON, and a ROS 2 nav2 map.
+
+All writers are atomic. World coordinates are metres, x right along the columns, y up (nav2's frame).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from .detection import Detection
+from .imageio import write_atomic, write_image
+
+_RED, _GREEN, _YELLOW, _CYAN, _WHITE, _BLACK = (40, 40, 230), (60, 200, 60), (0, 220, 255), (230, 200, 0), (255, 255, 255), (0, 0, 0)
+
+
+def overlay_image(image: np.ndarray, detection: Detection) -> np.ndarray:
+    """The scene with occupied cells shaded red, found symbols marked green, MARs in yellow and
+    obstacle numbers (as the paper's figure 12). Returns a BGR image (H, W, 3) uint8."""
+    from .imageio import as_gray
+
+    gray = as_gray(image)
+    out = cv2.cvtColor(gray, cv2.COLOR_GRAY2BGR)
+    grid = detection.calibration.grid
+    corners = grid.cell_corners_px()
+    shade = out.copy()
+    for r, c in detection.occupied_cells:
+        quad = np.array([corners[r, c], corners[r, c + 1], corners[r + 1, c + 1], corners[r + 1, c]])
+        cv2.fillPoly(shade, [np.rint(quad * 16).astype(np.int32)], _RED, lineType=cv2.LINE_AA, shift=4)
+    out = cv2.addWeighted(shade, 0.35, out, 0.65, 0)
+    scale = max(1, round(min(gray.shape) / 500))
+    for x, y in detection.matched_centres_px:
+        cv2.circle(out, (int(round(x)), int(round(y))), 3 * scale, _GREEN, -1, cv2.LINE_AA)
+    for x, y in detection.candidates_px:
+        cv2.drawMarker(out, (int(round(x)), int(round(y))), _CYAN, cv2.MARKER_TILTED_CROSS, 8 * scale, scale)
+    for ob in detection.obstacles:
+        cv2.polylines(out, [np.rint(ob.outline_px * 16).astype(np.int32)], True, _RED, scale, cv2.LINE_AA, shift=4)
+        cv2.polylines(out, [np.rint(ob.mar_px * 16).astype(np.int32)], True, _YELLOW, 2 * scale, cv2.LINE_AA, shift=4)
+        label = str(ob.id)
+        font, fs, th = cv2.FONT_HERSHEY_SIMPLEX, 0.9 * scale, 2 * scale
+        (tw, tht), _ = cv2.getTextSize(label, font, fs, th)
+        cx, cy = ob.centre_px
+        org = (int(cx - tw / 2), int(cy + tht / 2))
+        cv2.putText(out, label, org, font, fs, _BLACK, th + 3 * scale, cv2.LINE_AA)
+        cv2.putText(out, label, org, font, fs, _WHITE, th, cv2.LINE_AA)
+    text = (f"{detection.symbols_found}/{detection.symbols_expected} symbols, "
+            f"{len(detection.occupied_cells)} occupied cells, {len(detection.obstacles)} obstacles")
+    cv2.putText(out, text, (8, 20 * scale), cv2.FONT_HERSHEY_SIMPLEX, 0.55 * scale, _BLACK, 4 * scale, cv2.LINE_AA)
+    cv2.putText(out, text, (8, 20 * scale), cv2.FONT_HERSHEY_SIMPLEX, 0.55 * scale, _WHITE, scale, cv2.LINE_AA)
+    return out
+
+
+def write_overlay(path: str | os.PathLike, image: np.ndarray, detection: Detection) -> Path:
+    return write_image(path, overlay_image(image, detection))
+
+
+def write_occupancy(path: str | os.PathLike, detection: Detection) -> Path:
+    """The occupancy image (paper figure 14): black occupied blocks on white."""
+    return write_image(path, detection.occupancy)
+
+
+def geojson(detection: Detection) -> dict:
+    """Obstacles as a GeoJSON FeatureCollection in the local metric frame (metres, y up).
+
+    Each obstacle gives two Polygon features: its outline (``kind: "outline"``) and its MAR
+    (``kind: "mar"``). The foreign member ``sbplan`` records the frame and the floor's bounds.
+    """
+    features = []
+    for ob in detection.obstacles:
+        for kind, ring in (("outline", ob.outline_m), ("mar", ob.mar_m)):
+            ring = np.asarray(ring, np.float64)
+            # RFC 7946: exterior rings counter-clockwise (in the y-up frame), first point repeated
+            if _signed_area(ring) < 0:
+                ring = ring[::-1]
+            coords = np.vstack([ring, ring[:1]]).round(6).tolist()
+            features.append({
+                "type": "Feature",
+                "geometry": {"type": "Polygon", "coordinates": [coords]},
+                "properties": {"id": ob.id, "kind": kind, "cells": [list(c) for c in ob.cells]},
+            })
+    return {
+        "type": "FeatureCollection",
+        "features": features,
+        "sbplan": {
+            "frame": "local metric frame: metres, x right along the grid's columns, y up toward row 0",
+            "bounds_m": [round(v, 6) for v in detection.calibration.world_bounds()],
+        },
+    }
+
+
+def write_geojson(path: str | os.PathLike, detection: Detection) -> Path:
+    return write_atomic(path, json.dumps(geojson(detection), indent=1) + "\n")
+
+
+def nav2_map(detection: Detection, *, resolution: float | None = None) -> tuple[np.ndarray, dict]:
+    """A ROS 2 nav2 ``map_server`` map of the floor: (image (H, W) uint8, yaml fields).
+
+    Occupied cells are drawn as the exact squares they are on the floor (the grid is regular in the
+    world frame). Pixel 0 = occupied, 254 = free; row 0 of the image is the top (largest y), as
+    map_server expects; ``origin`` is the world pose of the bottom-left pixel's corner.
+    """
+    cal = detection.calibration
+    xmin, ymin, xmax, ymax = cal.world_bounds()
+    res = resolution or min(cal.workspace.pitch_m) / 10.0
+    width, height = int(np.ceil((xmax - xmin) / res - 1e-9)), int(np.ceil((ymax - ymin) / res - 1e-9))
+    image = np.full((height, width), 254, np.uint8)
+    for r, c in detection.occupied_cells:
+        lat = np.array([[c - 0.5, r - 0.5], [c + 0.5, r + 0.5]])
+        w = cal.workspace.lattice_to_world(lat, cal.grid.rows)
+        x0, x1 = sorted(w[:, 0])
+        y0, y1 = sorted(w[:, 1])
+        c0, c1 = int(round((x0 - xmin) / res)), int(round((x1 - xmin) / res))
+        # row flip: image row 0 is the top edge y = ymin + height * res
+        r0, r1 = int(round(height - (y1 - ymin) / res)), int(round(height - (y0 - ymin) / res))
+        image[max(r0, 0):min(r1, height), max(c0, 0):min(c1, width)] = 0
+    meta = {"image": "map.pgm", "mode": "trinary", "resolution": float(res),
+            "origin": [float(xmin), float(ymin), 0.0], "negate": 0,
+            "occupied_thresh": 0.65, "free_thresh": 0.25}
+    return image, meta
+
+
+def write_nav2(folder: str | os.PathLike, detection: Detection, *, resolution: float | None = None) -> Path:
+    """Write ``map.yaml`` and ``map.pgm`` into ``folder``; returns the YAML's path."""
+    folder = Path(folder)
+    image, meta = nav2_map(detection, resolution=resolution)
+    write_image(folder / meta["image"], image)
+    lines = [f"image: {meta['image']}", f"mode: {meta['mode']}", f"resolution: {meta['resolution']:.6g}",
+             "origin: [{:.6g}, {:.6g}, {:.6g}]".format(*meta["origin"]), f"negate: {meta['negate']}",
+             f"occupied_thresh: {meta['occupied_thresh']}", f"free_thresh: {meta['free_thresh']}"]
+    return write_atomic(folder / "map.yaml", "\n".join(lines) + "\n")
+
+
+def _signed_area(ring: np.ndarray) -> float:
+    x, y = ring[:, 0], ring[:, 1]
+    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
