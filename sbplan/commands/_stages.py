@@ -1,0 +1,23 @@
+"""Shared command-line options for choosing pipeline stages by name."""
+
+from __future__ import annotations
+
+import argparse
+
+STAGE_KINDS = ("binarizer", "extractor", "approximator", "matcher", "mapper")
+
+
+def add_stage_arguments(parser: argparse.ArgumentParser) -> None:
+    group = parser.add_argument_group("stages (names from 'sbplan plugins'; default: the calibrated ones)")
+    for kind in STAGE_KINDS:
+        group.add_argument(f"--{kind}", metavar="NAME", default=None, help=f"the {kind} stage")
+
+
+def stage_choices(args: argparse.Namespace) -> dict[str, str]:
+    """The stages named on the command line, validated against the registry (clear error if unknown)."""
+    from .. import plugins
+
+    chosen = {k: getattr(args, k) for k in STAGE_KINDS if getattr(args, k, None)}
+    for kind, name in chosen.items():
+        plugins.registry().info(kind, name)  # raises UnknownStageError listing the installed names
+    return chosen

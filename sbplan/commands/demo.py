@@ -1,0 +1,62 @@
+"""``sbplan demo``: the main job on an example floor — calibrate, detect, plan a route."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+HELP = "calibrate, detect and plan a route on an example map (default maps/paper-8x6)"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("map", nargs="?", default="maps/paper-8x6",
+                        help="map folder with reference.png, scene-01.png and workspace.toml (default: %(default)s)")
+    parser.add_argument("--scene", default="scene-01.png", help="scene image in the map folder (default: %(default)s)")
+    parser.add_argument("-o", "--output", default=None, metavar="DIR",
+                        help="folder for the calibration, result, pictures and maps (default: out/<map name>)")
+    parser.add_argument("--planner", default="aux-corner", help="planner stage (default: %(default)s)")
+
+
+def run(args: argparse.Namespace) -> int:
+    from .. import export
+    from ..calibration import calibrate
+    from ..detection import Detector
+    from ..errors import MapFormatError
+    from ..imageio import load_image, write_json
+    from ..workspace import load_workspace
+    from .detect import summary_lines
+
+    folder = Path(args.map)
+    if not (folder / "reference.png").is_file():
+        raise MapFormatError(f"{folder}: not a map folder (no reference.png); run from the sbplan checkout "
+                             "or name a map folder")
+    out = Path(args.output or Path("out") / folder.name)
+    workspace = load_workspace(folder) if (folder / "workspace.toml").is_file() else None
+    print(f"map {folder}: calibrating on reference.png")
+    cal = calibrate(folder / "reference.png", workspace=workspace)
+    cal.save(out / "calibration.json")
+    print(f"  grid {cal.grid.cols} x {cal.grid.rows}, threshold {cal.threshold:.4f}, margin {cal.margin:.1f}x")
+    image = load_image(folder / args.scene)
+    detection = Detector(cal)(image)
+    print(f"detecting on {args.scene}")
+    for line in summary_lines(detection):
+        print("  " + line)
+    write_json(out / "result.json", detection.to_json())
+    export.write_overlay(out / "overlay.png", image, detection)
+    export.write_occupancy(out / "occupancy.png", detection)
+    export.write_geojson(out / "obstacles.geojson", detection)
+    export.write_nav2(out / "nav2", detection)
+    ws = cal.workspace
+    if ws.start_m and ws.goal_m:
+        from ..planning import plan
+
+        obstacles = [ob.mar_m for ob in detection.obstacles]
+        route = plan(obstacles, ws.start_m, ws.goal_m, robot_radius=ws.robot_radius_m, planner=args.planner,
+                     bounds=cal.world_bounds())
+        pts = " -> ".join(f"({x:.2f}, {y:.2f})" for x, y in route.waypoints)
+        print(f"route ({route.planner}, {route.status}): {route.length:.3f} m in {route.time_s * 1e3:.2f} ms")
+        print(f"  {pts}")
+        write_json(out / "route.json", route.to_json() if hasattr(route, "to_json") else {
+            "waypoints": route.waypoints, "length": route.length, "status": route.status})
+    print(f"wrote {out}/: calibration.json, result.json, overlay.png, occupancy.png, obstacles.geojson, nav2/")
+    return 0

@@ -1,0 +1,61 @@
+"""Bad images get clear errors; good ones of any common kind become 8-bit grayscale."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from sbplan.errors import ImageError
+from sbplan.imageio import as_gray, load_image, write_atomic, write_json
+
+
+def test_colour_is_converted_and_16_bit_is_scaled():
+    bgr = np.zeros((4, 5, 3), np.uint8)
+    bgr[..., 2] = 255  # pure red in OpenCV's BGR order
+    gray = as_gray(bgr)
+    assert gray.shape == (4, 5) and gray.dtype == np.uint8
+    assert gray[0, 0] == cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY)[0, 0]
+    sixteen = np.array([[0, 65535], [32768, 257]], np.uint16)
+    assert as_gray(sixteen).tolist() == [[0, 255], [128, 1]]
+    assert as_gray(np.array([[0.0, 1.0]])).tolist() == [[0, 255]]
+    assert as_gray(np.array([[True, False]])).tolist() == [[255, 0]]
+
+
+@pytest.mark.parametrize("bad, message", [
+    ("not an image", "not an image"),
+    (np.zeros((0, 5), np.uint8), "empty image"),
+    (np.zeros((4, 4, 2), np.uint8), "channels"),
+    (np.zeros((2, 2, 2, 2), np.uint8), "shape"),
+    (np.zeros((3, 3), np.int64), "unsupported dtype"),
+    (np.full((3, 3), 2.0), r"\[0, 1\]"),
+    (np.array([[np.nan]]), "NaN"),
+])
+def test_bad_arrays_are_refused_clearly(bad, message):
+    with pytest.raises(ImageError, match=message):
+        as_gray(bad, name="scene")
+
+
+def test_unreadable_files(tmp_path):
+    with pytest.raises(ImageError, match="no such file"):
+        load_image(tmp_path / "missing.png")
+    junk = tmp_path / "junk.png"
+    junk.write_bytes(b"this is not a png")
+    with pytest.raises(ImageError, match="not an image"):
+        load_image(junk)
+    with pytest.raises(ImageError, match="folder"):
+        load_image(tmp_path)
+
+
+def test_atomic_write_keeps_the_old_file_when_writing_fails(tmp_path):
+    target = tmp_path / "calibration.json"
+    write_json(target, {"good": 1})
+
+    def explode(fh):
+        fh.write(b'{"half":')
+        raise RuntimeError("disk full")
+
+    with pytest.raises(RuntimeError):
+        write_atomic(target, explode)
+    assert target.read_text() == '{\n  "good": 1\n}\n'
+    assert [p.name for p in tmp_path.iterdir()] == ["calibration.json"], "no temporary file is left behind"
