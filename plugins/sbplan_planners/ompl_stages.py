@@ -1,0 +1,46 @@
+"""OMPL's sampling-based planners as sbplan planner stages, on the same obstacles as aux-corner
+(exact motion validator, fresh optimization objective per solve)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+from sbplan.errors import InputError
+from sbplan.stages import Planner, option
+
+
+@dataclass(kw_only=True, frozen=True)
+class _OmplPlanner(Planner):
+    seed: int = option(1, "seed of OMPL's random number generator, >= 1 (-1: not seeded)")
+    simplify: bool = option(True, "shorten the found path with OMPL's simplifier")
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.seed, int) or self.seed == 0 or self.seed < -1:
+            raise InputError(f"option seed: expected an integer >= 1 (or -1), got {self.seed!r}")
+
+    def solve(self, problem, *, time_limit: float = 1.0):
+        from sbplan.planning.ompl_planners import solve_ompl
+
+        return solve_ompl(problem.map, problem.start, problem.goal, self.name, time_limit=time_limit,
+                          simplify=self.simplify, seed=None if self.seed < 0 else self.seed)
+
+
+def _make(stage_name: str, ompl_name: str, what: str) -> type:
+    cls = type(f"Ompl{ompl_name}", (_OmplPlanner,), {
+        "__module__": __name__,
+        "__annotations__": {"name": "ClassVar[str]", "description": "ClassVar[str]"},
+        "name": stage_name,
+        "description": f"OMPL {ompl_name}: {what}",
+    })
+    return dataclass(kw_only=True, frozen=True)(cls)
+
+
+STAGES = [
+    _make("rrt-connect", "RRTConnect", "bidirectional RRT, fast, not optimal (simplified)"),
+    _make("rrt-star", "RRTstar", "asymptotically optimal RRT"),
+    _make("informed-rrt-star", "InformedRRTstar", "RRT* sampling an informed ellipse once solved"),
+    _make("prm-star", "PRMstar", "asymptotically optimal probabilistic roadmap"),
+    _make("bit-star", "BITstar", "batch informed trees, asymptotically optimal"),
+    _make("fmt-star", "FMT", "fast marching tree, asymptotically optimal"),
+]

@@ -1,0 +1,91 @@
+"""Polygon preparation for the planners: enlargement, ring arrays, corner classification.
+
+All points are world coordinates ``(x, y)`` (metres, or pixels with a scale), y up.
+"""
+
+from __future__ import annotations
+
+from typing import Iterable, Sequence
+
+import numpy as np
+import shapely
+from shapely.geometry import MultiPolygon, Polygon
+from shapely.geometry.polygon import orient
+
+from ..errors import InputError
+
+#: Mitre joins keep an enlarged rectangle a rectangle (its four corners are the auxiliary
+#: corners). A limit of 4 bevels only very sharp spikes; the result always contains the round
+#: buffer, so routes around it keep at least the requested clearance.
+MITRE_LIMIT = 4.0
+
+
+def as_polygons(obstacles: Iterable, *, name: str = "obstacles") -> list[Polygon]:
+    """Validate obstacles and return them as a list of valid shapely polygons.
+
+    Parameters
+    ----------
+    obstacles : iterable of shapely Polygon / MultiPolygon or array_like of shape (M, 2)
+        Each an obstacle outline ``(x, y)``; multipolygons are split into their parts.
+    """
+    out: list[Polygon] = []
+    for i, ob in enumerate(obstacles):
+        if isinstance(ob, MultiPolygon):
+            parts = list(ob.geoms)
+        elif isinstance(ob, Polygon):
+            parts = [ob]
+        else:
+            try:
+                pts = np.asarray(ob, dtype=float)
+            except (TypeError, ValueError):
+                raise InputError(f"{name}[{i}]: not a polygon or an (M, 2) array of points") from None
+            if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 3:
+                raise InputError(f"{name}[{i}]: expected an (M, 2) array with M >= 3, got shape {pts.shape}")
+            parts = [Polygon(pts)]
+        for p in parts:
+            if p.is_empty:
+                continue
+            coords = np.asarray(p.exterior.coords)
+            if not np.isfinite(coords).all():
+                raise InputError(f"{name}[{i}]: coordinates must be finite")
+            if not p.is_valid:
+                p = shapely.make_valid(p)
+                parts2 = [g for g in getattr(p, "geoms", [p]) if isinstance(g, Polygon)]
+                out.extend(g for g in parts2 if g.area > 0)
+                continue
+            if p.area > 0:
+                out.append(p)
+    return out
+
+
+def enlarge(polygons: Sequence[Polygon], distance: float) -> list[Polygon]:
+    """Enlarge each polygon by ``distance`` with mitre joins; orient CCW (holes CW), drop
+    collinear vertices. Overlaps are kept (not merged): the planner tests against all of them."""
+    out = []
+    for p in polygons:
+        q = p.buffer(distance, join_style="mitre", mitre_limit=MITRE_LIMIT) if distance > 0 else p
+        for g in getattr(q, "geoms", [q]):
+            if isinstance(g, Polygon) and not g.is_empty and g.area > 0:
+                out.append(orient(g.simplify(0.0), 1.0))
+    return out
+
+
+def rings(polygons: Sequence[Polygon]) -> list[np.ndarray]:
+    """Every ring (exterior and holes) as an (M, 2) float64 array, not closed, interior on the
+    left of each directed edge (shapely's CCW exterior / CW holes)."""
+    out = []
+    for p in polygons:
+        for ring in (p.exterior, *p.interiors):
+            c = np.asarray(ring.coords, dtype=float)[:-1]
+            if len(c) >= 3:
+                out.append(c)
+    return out
+
+
+def convex_mask(ring: np.ndarray) -> np.ndarray:
+    """True at the ring's convex vertices (interior on the left): the auxiliary corners."""
+    prev = np.roll(ring, 1, axis=0)
+    nxt = np.roll(ring, -1, axis=0)
+    a = ring - prev
+    b = nxt - ring
+    return (a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]) > 0

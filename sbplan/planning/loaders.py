@@ -1,0 +1,246 @@
+"""Obstacle loaders: sbplan detection JSON, GeoJSON, nav2 map.yaml and occupancy images.
+
+Every loader returns an :class:`ObstacleSet` in the world frame: ``(x, y)`` metres (or pixels with
+resolution 1), x right, y up. Occupancy images become exact rectangles (run-length merging of
+occupied pixels), never one rectangle around a connected wall structure.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from shapely.geometry import Polygon, box
+
+from ..errors import ImageError, MapFormatError
+from ..imageio import as_gray, load_image
+
+
+@dataclass
+class ObstacleSet:
+    """Obstacles (shapely polygons, world frame) and the workspace bounds (xmin, ymin, xmax, ymax)
+    when the source gives them."""
+
+    polygons: list
+    bounds: tuple | None = None
+    source: str = ""
+
+
+def load_obstacles(path: Any, *, resolution: float | None = None, use: str = "mar") -> ObstacleSet:
+    """Load obstacles from a file, by its type.
+
+    Parameters
+    ----------
+    path : str or Path
+        ``*.json`` sbplan detection result (``format`` ``sbplan.detection/1``) or GeoJSON
+        FeatureCollection; ``*.geojson``; ``*.yaml``/``*.yml`` nav2 map; ``*.png``/``*.pgm``/...
+        plain occupancy image (dark = occupied).
+    resolution : float, optional
+        Metres per pixel for a plain image (default 1: pixel units). Origin at the image's
+        bottom-left corner, y up (nav2's frame).
+    use : "mar" | "outline"
+        Which polygon of a detection to plan around.
+    """
+    p = Path(path)
+    if not p.exists():
+        raise MapFormatError(f"{p}: no such file")
+    if p.is_dir():
+        raise MapFormatError(f"{p}: is a folder, not an obstacle file")
+    ext = p.suffix.lower()
+    if ext in (".json", ".geojson"):
+        try:
+            data = json.loads(p.read_text(encoding="utf-8"))
+        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+            raise MapFormatError(f"{p}: not valid JSON ({exc})") from None
+        if isinstance(data, dict) and data.get("type") == "FeatureCollection":
+            return _from_geojson(data, str(p))
+        if isinstance(data, dict) and str(data.get("format", "")).startswith("sbplan.detection"):
+            return _from_detection(data, str(p), use)
+        raise MapFormatError(f"{p}: neither a GeoJSON FeatureCollection nor an sbplan detection result")
+    if ext in (".yaml", ".yml"):
+        return _from_nav2(p)
+    try:
+        img = load_image(p)
+    except ImageError as exc:
+        raise MapFormatError(str(exc)) from None
+    res = 1.0 if resolution is None else float(resolution)
+    if not math.isfinite(res) or res <= 0:
+        raise MapFormatError(f"resolution: must be > 0, got {resolution!r}")
+    occ = img < 128
+    return ObstacleSet(occupancy_rectangles(occ, resolution=res),
+                       (0.0, 0.0, img.shape[1] * res, img.shape[0] * res), str(p))
+
+
+def _bounds(b: Any, where: str) -> tuple | None:
+    if b is None:
+        return None
+    try:
+        t = tuple(float(v) for v in b)
+    except (TypeError, ValueError):
+        raise MapFormatError(f"{where}: bounds_m must be [xmin, ymin, xmax, ymax]") from None
+    if len(t) != 4 or not all(math.isfinite(v) for v in t) or t[0] >= t[2] or t[1] >= t[3]:
+        raise MapFormatError(f"{where}: bounds_m must be [xmin, ymin, xmax, ymax] with min < max")
+    return t
+
+
+def _poly(coords: Any, where: str) -> Polygon:
+    try:
+        a = np.asarray(coords, dtype=float)
+    except (TypeError, ValueError):
+        raise MapFormatError(f"{where}: polygon coordinates are not numbers") from None
+    if a.ndim != 2 or a.shape[1] != 2 or len(a) < 3 or not np.isfinite(a).all():
+        raise MapFormatError(f"{where}: expected at least 3 finite [x, y] points")
+    return Polygon(a)
+
+
+def _from_detection(data: dict, src: str, use: str) -> ObstacleSet:
+    if use not in ("mar", "outline"):
+        raise MapFormatError(f"use: expected 'mar' or 'outline', got {use!r}")
+    key = "mar_m" if use == "mar" else "outline_m"
+    obs = data.get("obstacles")
+    if not isinstance(obs, list):
+        raise MapFormatError(f"{src}: 'obstacles' must be a list")
+    polys = []
+    for i, ob in enumerate(obs):
+        if not isinstance(ob, dict) or key not in ob:
+            raise MapFormatError(f"{src}: obstacles[{i}] has no {key!r}")
+        polys.append(_poly(ob[key], f"{src}: obstacles[{i}].{key}"))
+    ws = data.get("workspace") or {}
+    return ObstacleSet(polys, _bounds(ws.get("bounds_m") if isinstance(ws, dict) else None, src), src)
+
+
+def _from_geojson(data: dict, src: str) -> ObstacleSet:
+    feats = data.get("features")
+    if not isinstance(feats, list):
+        raise MapFormatError(f"{src}: 'features' must be a list")
+    items = []
+    for i, f in enumerate(feats):
+        geom = f.get("geometry") if isinstance(f, dict) else None
+        if not isinstance(geom, dict):
+            raise MapFormatError(f"{src}: features[{i}] has no geometry")
+        kind = (f.get("properties") or {}).get("kind")
+        t = geom.get("type")
+        if t == "Polygon":
+            parts = [geom.get("coordinates")]
+        elif t == "MultiPolygon":
+            parts = geom.get("coordinates") or []
+        else:
+            raise MapFormatError(f"{src}: features[{i}] is a {t}, expected Polygon or MultiPolygon")
+        for rings in parts:
+            if not isinstance(rings, list) or not rings:
+                raise MapFormatError(f"{src}: features[{i}] has no polygon rings")
+            shell = _poly(rings[0], f"{src}: features[{i}]")
+            holes = [_poly(r, f"{src}: features[{i}] hole").exterior.coords for r in rings[1:]]
+            items.append((kind, Polygon(shell.exterior.coords, holes)))
+    kinds = {k for k, _ in items if k is not None}
+    polys = [p for k, p in items if k == "mar"] if kinds else [p for _, p in items]
+    if kinds and not polys:
+        polys = [p for _, p in items]
+    meta = data.get("sbplan") if isinstance(data.get("sbplan"), dict) else {}
+    return ObstacleSet(polys, _bounds(meta.get("bounds_m"), src), src)
+
+
+def _read_yaml(p: Path) -> dict:
+    text = p.read_text(encoding="utf-8", errors="replace")
+    try:
+        import yaml  # optional: a minimal parser below covers nav2's flat files
+        data = yaml.safe_load(text)
+    except ImportError:
+        data = {}
+        for line in text.splitlines():
+            line = line.split("#", 1)[0].strip()
+            if ":" not in line:
+                continue
+            k, v = (s.strip() for s in line.split(":", 1))
+            if v.startswith("["):
+                data[k] = [float(x) for x in v.strip("[]").split(",") if x.strip()]
+            else:
+                try:
+                    data[k] = float(v) if any(c in v for c in ".eE") else int(v)
+                except ValueError:
+                    data[k] = v.strip("'\"")
+    except Exception as exc:
+        raise MapFormatError(f"{p}: not valid YAML ({exc})") from None
+    if not isinstance(data, dict):
+        raise MapFormatError(f"{p}: not a nav2 map.yaml (expected a mapping)")
+    return data
+
+
+def _from_nav2(p: Path) -> ObstacleSet:
+    data = _read_yaml(p)
+    for k in ("image", "resolution", "origin"):
+        if k not in data:
+            raise MapFormatError(f"{p}: nav2 map.yaml lacks {k!r}")
+    try:
+        res = float(data["resolution"])
+        origin = [float(v) for v in data["origin"]]
+        negate = int(data.get("negate", 0))
+        occ_t = float(data.get("occupied_thresh", 0.65))
+        free_t = float(data.get("free_thresh", 0.196))
+    except (TypeError, ValueError):
+        raise MapFormatError(f"{p}: resolution, origin, negate and thresholds must be numbers") from None
+    if not math.isfinite(res) or res <= 0 or len(origin) < 2:
+        raise MapFormatError(f"{p}: resolution must be > 0 and origin [x, y, yaw]")
+    if len(origin) > 2 and abs(origin[2]) > 1e-9:
+        raise MapFormatError(f"{p}: rotated map origins (yaw != 0) are not supported")
+    mode = str(data.get("mode", "trinary"))
+    img_path = (p.parent / str(data["image"])).resolve()
+    try:
+        img = load_image(img_path)
+    except ImageError as exc:
+        raise MapFormatError(str(exc)) from None
+    occ = (img.astype(float) / 255.0) if negate else (255.0 - img.astype(float)) / 255.0
+    occupied = occ > occ_t
+    if mode != "raw":
+        occupied |= (occ >= free_t) & ~occupied  # unknown counts as obstacle
+    h, w = img.shape
+    polys = occupancy_rectangles(occupied, resolution=res, origin=(origin[0], origin[1]))
+    bounds = (origin[0], origin[1], origin[0] + w * res, origin[1] + h * res)
+    return ObstacleSet(polys, bounds, str(p))
+
+
+def occupancy_rectangles(occupied: np.ndarray, *, resolution: float = 1.0,
+                         origin: tuple[float, float] = (0.0, 0.0)) -> list[Polygon]:
+    """Exact decomposition of occupied pixels into axis-aligned rectangles.
+
+    Runs of occupied pixels in each row are merged with identical runs in the rows below them.
+
+    Parameters
+    ----------
+    occupied : ndarray of shape (H, W), bool, indexed ``(row, col)``; row 0 is the top.
+    resolution : float, world units per pixel.
+    origin : (x, y) of the image's bottom-left corner in the world.
+
+    Returns
+    -------
+    list of shapely Polygon, world ``(x, y)``, y up: pixel (row, col) covers
+    x in [ox + col*res, ox + (col+1)*res], y in [oy + (H-1-row)*res, oy + (H-row)*res].
+    """
+    occ = np.asarray(occupied, bool)
+    if occ.ndim != 2:
+        raise MapFormatError(f"occupied: expected a 2-D mask, got shape {occ.shape}")
+    h, w = occ.shape
+    pad = np.zeros((h, w + 2), np.int8)
+    pad[:, 1:-1] = occ
+    dif = np.diff(pad, axis=1)
+    rs, cs = np.nonzero(dif == 1)
+    re, ce = np.nonzero(dif == -1)  # same row order, runs [cs, ce)
+    open_runs: dict[tuple[int, int], int] = {}  # (c0, c1) -> first row
+    rects = []
+    row_runs: dict[int, list] = {}
+    for r, c0, c1 in zip(rs.tolist(), cs.tolist(), ce.tolist()):
+        row_runs.setdefault(r, []).append((c0, c1))
+    for r in range(h + 1):
+        cur = set(row_runs.get(r, ()))
+        for run in list(open_runs):
+            if run not in cur:
+                rects.append((open_runs.pop(run), r, run[0], run[1]))
+        for run in cur:
+            open_runs.setdefault(run, r)
+    ox, oy = origin
+    return [box(ox + c0 * resolution, oy + (h - r1) * resolution, ox + c1 * resolution, oy + (h - r0) * resolution)
+            for r0, r1, c0, c1 in rects]
