@@ -1,0 +1,107 @@
+"""sbplan.geometry: equation (1), areas, perimeters, resampling and the length filter."""
+
+import numpy as np
+import pytest
+import shapely
+from hypothesis import given, settings, strategies as st
+
+from sbplan import geometry as g
+from sbplan.errors import ContourError, InputError
+from sbplan.model import Contour
+
+
+def star_polygon(seed, n=None, *, center=(0.0, 0.0), scale=1.0):
+    """A random star-shaped simple polygon (vertices sorted by angle around its centre)."""
+    rng = np.random.default_rng(seed)
+    n = n or int(rng.integers(3, 40))
+    t = np.sort(rng.uniform(0, 2 * np.pi, n))
+    t += np.linspace(0, 1e-3, n)  # strictly increasing angles
+    r = rng.uniform(0.3, 1.0, n) * scale
+    return np.c_[center[0] + r * np.cos(t), center[1] + r * np.sin(t)]
+
+
+@settings(max_examples=80, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), cx=st.floats(-1e4, 1e4), cy=st.floats(-1e4, 1e4),
+       scale=st.floats(0.5, 500))
+def test_centroid_equation_1_equals_shapely(seed, cx, cy, scale):
+    p = star_polygon(seed, center=(cx, cy), scale=scale)
+    expect = shapely.Polygon(p).centroid
+    got = g.centroid(p)
+    # 1e-9 relative to the polygon's extent and position
+    tol = 1e-9 * max(scale, abs(cx), abs(cy), 1.0)
+    assert abs(got[0] - expect.x) <= tol and abs(got[1] - expect.y) <= tol
+    # traversal direction does not matter; the batched version agrees
+    back = g.centroid(p[::-1])
+    assert np.allclose(back, got, rtol=0, atol=tol)
+    many = g.centroids([p, p[::-1], p + 1.0])
+    assert np.allclose(many[:2], got, rtol=0, atol=tol)
+    assert np.allclose(many[2], np.add(got, 1.0), rtol=0, atol=tol)
+
+
+def test_signed_area_orientation_follows_display():
+    # (0,0) -> (0,1) -> (1,1) -> (1,0) goes down, right, up: counter-clockwise as displayed (y down)
+    ccw = np.array([[0, 0], [0, 1], [1, 1], [1, 0]], float)
+    assert g.signed_area(ccw) == pytest.approx(1.0)
+    assert g.signed_area(ccw[::-1]) == pytest.approx(-1.0)
+    assert np.allclose(g.signed_areas([ccw, ccw[::-1] * 2]), [1.0, -4.0])
+
+
+@settings(max_examples=50, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1))
+def test_area_and_perimeter_match_shapely(seed):
+    p = star_polygon(seed, scale=50.0)
+    poly = shapely.Polygon(p)
+    assert abs(g.signed_area(p)) == pytest.approx(poly.area, rel=1e-9)
+    assert g.perimeter(p) == pytest.approx(poly.length, rel=1e-12)
+    assert g.perimeters([p, p * 2])[1] == pytest.approx(2 * poly.length, rel=1e-12)
+
+
+def test_centroid_zero_area_raises():
+    with pytest.raises(ContourError, match="no area"):
+        g.centroid([[0, 0], [1, 1], [2, 2]])
+    with pytest.raises(ContourError, match=r"polygons\[1\]"):
+        g.centroids([star_polygon(1), np.array([[0, 0], [1, 0], [2, 0.0]])])
+    out = g.centroids([star_polygon(1), np.array([[0, 0], [1, 0], [2, 0.0]])], on_zero_area="nan")
+    assert np.isfinite(out[0]).all() and np.isnan(out[1]).all()
+
+
+@pytest.mark.parametrize("bad", [[[0, 0], [1, 1]], [[0, 0], [1, np.nan], [2, 3]], [[0, 0, 0]] * 3, "abc"])
+def test_bad_points_raise_contour_error(bad):
+    for fn in (g.centroid, g.signed_area, g.perimeter, lambda p: g.resample_closed(p, 16)):
+        with pytest.raises(ContourError):
+            fn(bad)
+
+
+def test_bad_polygon_in_batch_is_named():
+    with pytest.raises(ContourError, match=r"polygons\[2\]"):
+        g.resample_many([star_polygon(1), star_polygon(2), [[0, 0], [1, 1]]], 16)
+
+
+def test_resample_equal_arc_length_steps():
+    square = np.array([[0, 0], [4, 0], [4, 4], [0, 4]], float)
+    r = g.resample_closed(square, 8)
+    assert np.allclose(r, [[0, 0], [2, 0], [4, 0], [4, 2], [4, 4], [2, 4], [0, 4], [0, 2]])
+    # duplicate points (zero-length edges) are harmless
+    dup = np.array([[0, 0], [0, 0], [4, 0], [4, 4], [4, 4], [0, 4]], float)
+    assert np.allclose(g.resample_closed(dup, 8), r)
+    many = g.resample_many([square, square[::-1] + 10], 8)
+    assert many.shape == (2, 8, 2)
+    assert np.allclose(many[0], r)
+    with pytest.raises(InputError, match="samples"):
+        g.resample_closed(square, 2)
+    with pytest.raises(ContourError, match="zero perimeter"):
+        g.resample_closed([[1, 1]] * 4, 8)
+
+
+def test_length_filter_on_lengths_and_contours():
+    assert g.length_filter([3.0, 5.0, 10.0], min_length=4, max_length=9).tolist() == [False, True, False]
+    # a 2x2 pixel square: 4 axis steps; a diagonal diamond: 4 diagonal steps
+    sq = Contour(points=np.array([[0, 0], [0, 1], [1, 1], [1, 0]]), chain=np.array([6, 0, 2, 4], np.uint8))
+    dia = Contour(points=np.array([[1, 0], [0, 1], [1, 2], [2, 1]]), chain=np.array([5, 7, 1, 3], np.uint8))
+    assert g.contour_length(sq) == 4.0
+    assert g.contour_length(dia) == pytest.approx(4 * np.sqrt(2))
+    assert g.length_filter([sq, dia], min_length=4.5).tolist() == [False, True]
+    with pytest.raises(InputError, match="max_length"):
+        g.length_filter([1.0], min_length=5, max_length=2)
+    with pytest.raises(InputError, match="min_length"):
+        g.length_filter([1.0], min_length=-1)
