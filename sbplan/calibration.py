@@ -179,21 +179,21 @@ class Shapes:
 def extract_shapes(gray: np.ndarray, *, binarizer, extractor, approximator, matcher,
                    points_range: tuple[int, int]) -> Shapes:
     """Binarize, extract, length-filter, approximate and describe the outer contours of an image."""
-    from .geometry import centroid, signed_area
+    from .geometry import centroids, signed_areas
 
     binary = binarizer.binarize(gray)
     contours = [c for c in extractor.extract(binary) if not c.is_hole]
     lo, hi = points_range
     kept = [c for c in contours if lo <= len(c.points) <= hi]
-    polygons, n_points = [], []
-    for c in kept:
-        poly = approximator.approximate(c)
-        if len(poly) >= 3 and abs(signed_area(poly)) > 0:
-            polygons.append(poly)
-            n_points.append(len(c.points))
+    approximated = [approximator.approximate(c) for c in kept]
+    keep = [i for i, p in enumerate(approximated) if len(p) >= 3]
+    polygons = [approximated[i] for i in keep]
+    n_points = [len(kept[i].points) for i in keep]
+    areas = np.abs(signed_areas(polygons)) if polygons else np.zeros(0)
+    nonzero = np.flatnonzero(areas > 0)
+    polygons, n_points, areas = [polygons[i] for i in nonzero], [n_points[i] for i in nonzero], areas[nonzero]
     if polygons:
-        areas = np.array([abs(signed_area(p)) for p in polygons])
-        centres = np.array([centroid(p) for p in polygons], dtype=np.float64).reshape(-1, 2)
+        centres = centroids(polygons).reshape(-1, 2)
         descriptors = matcher.describe_many(polygons)
     else:
         areas, centres = np.zeros(0), np.zeros((0, 2))

@@ -16,7 +16,7 @@ import numpy as np
 
 from .calibration import Calibration, derive_threshold, load_calibration
 from .errors import DetectionError
-from .geometry import centroid, signed_area
+from .geometry import centroids, signed_areas
 from .imageio import as_gray, load_image
 from .obstacles import Obstacle, find_obstacles
 
@@ -115,7 +115,7 @@ class Detector:
             other = self.matcher.describe_many(cal.other_polygons) if cal.other_polygons else sym[:0]
             d_other = self.matcher.distance_matrix(other, self.descriptor[None, :])[:, 0] if len(other) else np.zeros(0)
             self.threshold, _ = derive_threshold(d_sym, d_other)
-        areas = np.array([abs(signed_area(p)) for p in cal.symbol_polygons])
+        areas = np.abs(signed_areas(cal.symbol_polygons))
         self.cell_area = areas.reshape(cal.grid.rows, cal.grid.cols)
         self.stage_names = {"binarizer": self.binarizer.name, "extractor": self.extractor.name,
                             "approximator": self.approximator.name, "matcher": self.matcher.name,
@@ -156,8 +156,9 @@ class Detector:
             lap("describe")
             hit = np.flatnonzero(d < self.threshold)
             if len(hit):
-                centres = np.array([centroid(polygons[i]) for i in hit], np.float64).reshape(-1, 2)
-                areas = np.array([abs(signed_area(polygons[i])) for i in hit])
+                hit_polygons = [polygons[i] for i in hit]
+                centres = centroids(hit_polygons, on_zero_area="nan").reshape(-1, 2)
+                areas = np.abs(signed_areas(hit_polygons))
                 cells = cal.grid.assign(centres)
                 ok = cells[:, 0] >= 0
                 # A fixed camera sees each cell's symbol at one size: a shape of the right form

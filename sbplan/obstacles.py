@@ -105,20 +105,20 @@ def find_obstacles(occupancy: np.ndarray, occupied: np.ndarray, grid, *, to_worl
     mask = (occupancy == 0).astype(np.uint8)
     if not mask.any():
         return []
-    n_labels, labels = cv2.connectedComponents(mask, connectivity=8)
     contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
     h, w = mask.shape
     rows, cols = np.nonzero(occupied)
-    centres = grid.centres_px[rows, cols]
-    cx = np.clip(np.rint(centres[:, 0]).astype(int), 0, w - 1)
-    cy = np.clip(np.rint(centres[:, 1]).astype(int), 0, h - 1)
-    cell_label = labels[cy, cx]
+    centres = grid.centres_px[rows, cols].astype(np.float32)
+    unclaimed = np.ones(len(rows), bool)
     found = []
     for contour in contours:
         outline = contour[:, 0, :].astype(np.float64)
-        x0, y0 = contour[0, 0]
-        label = labels[y0, x0]
-        cells = sorted((int(r), int(c)) for r, c, lab in zip(rows, cols, cell_label) if lab == label)
+        # an occupied cell belongs to the region whose outline encloses its centre; a few point
+        # tests are far cheaper than labelling every pixel of the image
+        mine = [i for i in np.flatnonzero(unclaimed)
+                if cv2.pointPolygonTest(contour, (float(centres[i, 0]), float(centres[i, 1])), False) >= 0]
+        unclaimed[mine] = False
+        cells = sorted((int(rows[i]), int(cols[i])) for i in mine)
         mar = mar_opencv(outline)
         outline_m = mar_m = None
         if to_world is not None:
