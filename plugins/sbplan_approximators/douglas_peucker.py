@@ -1,0 +1,56 @@
+"""Douglas–Peucker polygon approximation (OpenCV's approxPolyDP)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+import cv2
+import numpy as np
+
+from sbplan.errors import InputError
+from sbplan.stages import ContourApproximator, option
+
+from ._common import contour_points, three_vertices
+
+__all__ = ["DouglasPeucker"]
+
+
+@dataclass(kw_only=True, frozen=True)
+class DouglasPeucker(ContourApproximator):
+    """Douglas–Peucker approximation of the closed pixel contour by ``cv2.approxPolyDP``.
+
+    Every contour pixel lies within ``epsilon`` of the polygon. The default 1.5 px: the boundary
+    pixels of a digitized straight edge stay within 1 px of the chord between its end pixels, so
+    any epsilon of at least 1 collapses a rasterized edge to one segment, and the extra half pixel
+    absorbs single-pixel noise at the edges' ends; corners of symbols a few pixels large and more
+    are kept. With ``relative > 0`` the tolerance grows with the contour:
+    ``max(epsilon, relative * perimeter)``, the usual OpenCV idiom for large outlines.
+    """
+
+    name: ClassVar[str] = "douglas-peucker"
+    description: ClassVar[str] = "Douglas-Peucker polygon (cv2.approxPolyDP) with a pixel tolerance"
+
+    epsilon: float = option(1.5, "largest distance (pixels) of a contour pixel from the polygon")
+    relative: float = option(0.0, "if > 0, tolerance is max(epsilon, relative * contour perimeter)")
+
+    def __post_init__(self) -> None:
+        for key in ("epsilon", "relative"):
+            v = getattr(self, key)
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.number)) or not np.isfinite(v):
+                raise InputError(f"option {key}: expected a finite number, got {v!r}")
+        if self.epsilon < 0:
+            raise InputError(f"option epsilon: must be >= 0 pixels, got {self.epsilon}")
+        if not 0 <= self.relative < 0.5:
+            raise InputError(f"option relative: must lie in [0, 0.5), got {self.relative}")
+
+    def approximate(self, contour) -> np.ndarray:
+        pts = contour_points(contour)
+        curve = pts.astype(np.float32).reshape(-1, 1, 2)
+        eps = float(self.epsilon)
+        if self.relative > 0:
+            eps = max(eps, self.relative * cv2.arcLength(curve, True))
+        out = cv2.approxPolyDP(curve, eps, True).reshape(-1, 2).astype(np.float64)
+        if len(out) < 3:
+            return three_vertices(pts)
+        return out

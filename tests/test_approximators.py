@@ -1,0 +1,170 @@
+"""Approximators kka and douglas-peucker on contours of images rendered here with OpenCV."""
+
+import cv2
+import numpy as np
+import pytest
+
+import sbplan.plugins as plugins
+from sbplan.errors import ContourError, InputError
+from sbplan.model import FREEMAN_STEPS, Contour
+from sbplan_approximators._common import contour_chain, polygon_deviation
+from sbplan_approximators.kka import KKA, is_digital_straight, straight_pieces
+
+NAMES = ["kka", "douglas-peucker"]
+
+
+def contours_of(mask):
+    """Contours of a binary image via cv2.findContours (CHAIN_APPROX_NONE), as sbplan Contours."""
+    found, hier = cv2.findContours(mask.astype(np.uint8), cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE)
+    out = []
+    for c, h in zip(found, hier[0]):
+        p = c[:, 0].astype(np.int64)
+        hole = bool(h[3] >= 0)
+        chain = contour_chain(None, p.astype(float)).astype(np.uint8)
+        assert np.array_equal(np.roll(p, -1, axis=0) - p, FREEMAN_STEPS[chain])
+        out.append(Contour(points=p, is_hole=hole, orientation=-1 if hole else 1, chain=chain))
+    return out
+
+
+def blank(size=140):
+    return np.zeros((size, size), np.uint8)
+
+
+def assert_near(vertices, expected, tol):
+    """Every expected corner has a vertex within tol, and there are as many vertices as corners."""
+    assert len(vertices) == len(expected)
+    d = np.hypot(*(vertices[:, None, :] - np.asarray(expected, float)[None, :, :]).transpose(2, 0, 1))
+    assert d.min(axis=0).max() <= tol
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_axis_rectangle_gives_its_four_corners(name):
+    img = blank()
+    cv2.rectangle(img, (10, 20), (60, 70), 255, -1)
+    outer = contours_of(img)[0]
+    v = plugins.approximator(name).approximate(outer)
+    assert v.dtype == np.float64 and v.shape == (4, 2)
+    assert_near(v, [(10, 20), (10, 70), (60, 70), (60, 20)], 0.0)
+
+
+@pytest.mark.parametrize("name", NAMES)
+@pytest.mark.parametrize("angle", [7.0, 20.0, 33.0, 45.0, 71.0])
+def test_rotated_rectangle_gives_four_corners_near_the_true_ones(name, angle):
+    img = blank()
+    box = cv2.boxPoints(((70, 70), (80, 44), angle))
+    cv2.fillPoly(img, [np.round(box).astype(np.int32)], 255)
+    outer = contours_of(img)[0]
+    v = plugins.approximator(name).approximate(outer)
+    # corners of the rasterized box lie within ~1.5 px of the rounded box corners
+    assert_near(v, np.round(box), 2.0)
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_vertices_lie_on_the_contour_and_deviation_is_bounded(name):
+    img = blank(160)
+    pts = np.array([[20, 30], [90, 12], [140, 60], [100, 80], [120, 140], [40, 120], [60, 70]], np.int32)
+    cv2.fillPoly(img, [pts], 255)
+    cv2.circle(img, (70, 95), 12, 0, -1)  # a hole
+    for c in contours_of(img):
+        v = plugins.approximator(name).approximate(c)
+        assert len(v) >= 3
+        # vertices are contour pixels
+        assert {tuple(p) for p in v.astype(int)} <= {tuple(p) for p in c.points}
+        # the traversal sense is kept
+        area = -0.5 * np.sum(v[:, 0] * np.roll(v[:, 1], -1) - np.roll(v[:, 0], -1) * v[:, 1])
+        assert np.sign(area) == c.orientation
+        # every contour pixel is close to the polygon (1.5 px DP tolerance; KKA 1 px + noise merge)
+        assert polygon_deviation(c.points.astype(float), v) <= 2.0
+
+
+@pytest.mark.parametrize("name", NAMES)
+@pytest.mark.parametrize("radius", [25, 50])
+def test_circle_area_within_a_few_percent(name, radius):
+    img = blank(2 * radius + 20)
+    cv2.circle(img, (radius + 10, radius + 10), radius, 255, -1)
+    v = plugins.approximator(name).approximate(contours_of(img)[0])
+    area = 0.5 * abs(np.sum(v[:, 0] * np.roll(v[:, 1], -1) - np.roll(v[:, 0], -1) * v[:, 1]))
+    # the polygon runs through boundary pixel centres, about half a pixel inside the disk's edge,
+    # so compare with the disk of radius r - 0.5: within 4 % (chords cut the arcs a little more)
+    disk = np.pi * (radius - 0.5) ** 2
+    assert abs(area - disk) <= 0.04 * disk
+    assert len(v) >= 8
+
+
+def bresenham_chain(dx, dy, steps):
+    """Freeman codes of the 8-connected digital straight line of slope dy/dx (0 <= dy <= dx)."""
+    x = np.arange(steps + 1)
+    y = np.floor(x * dy / dx + 0.5).astype(int)
+    rise = np.diff(y)
+    return np.where(rise == 0, 0, 1)
+
+
+@pytest.mark.parametrize("dx,dy", [(5, 2), (7, 3), (1, 0), (1, 1), (13, 4), (3, 1)])
+def test_digital_straight_line_is_one_piece(dx, dy):
+    chain = bresenham_chain(dx, dy, 60)
+    assert is_digital_straight(chain)
+    # any rotation by multiples of 45 degrees stays straight
+    assert is_digital_straight((chain + 3) % 8)
+
+
+def test_non_straight_chains_are_rejected_and_split():
+    assert not is_digital_straight([0, 0, 2, 2])        # codes not adjacent
+    assert not is_digital_straight([0, 1, 1, 0, 0])     # both codes in runs longer than 1
+    assert not is_digital_straight([0, 1, 0, 1, 0, 0, 0, 0, 1, 0])  # interior runs 1 and 4
+    # a closed square 10x10: four straight pieces starting at its corners
+    chain = np.repeat([6, 0, 2, 4], 10)
+    assert straight_pieces(chain).tolist() == [0, 10, 20, 30]
+
+
+def test_kka_staircase_triangle_keeps_one_segment_per_side():
+    img = blank()
+    # the long side has slope 2/5: a digital straight line (staircase), 100 px long
+    cv2.fillPoly(img, [np.array([[5, 5], [105, 45], [5, 45]], np.int32)], 255)
+    v = KKA().approximate(contours_of(img)[0])
+    assert_near(v, [(5, 5), (5, 45), (105, 45)], 0.0)
+
+
+def test_kka_merges_noise_chains():
+    img = blank()
+    cv2.rectangle(img, (20, 20), (100, 80), 255, -1)
+    img[19, 60] = 255  # a one-pixel bump on the top edge
+    img[50, 101] = 255  # and on the right edge
+    v = KKA().approximate(contours_of(img)[0])
+    assert_near(v, [(20, 20), (20, 80), (100, 80), (100, 20)], 0.0)
+    # without noise merging and with no chord merging, the bumps stay
+    raw = KKA(noise_length=0, max_deviation=0.0).approximate(contours_of(img)[0])
+    assert len(raw) > 4
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_short_contours_raise_contour_error(name):
+    a = plugins.approximator(name)
+    with pytest.raises(ContourError):
+        a.approximate(Contour(points=np.array([[0, 0], [1, 0]]), chain=np.array([0, 4], np.uint8)))
+    with pytest.raises(ContourError):
+        a.approximate(np.array([[0, 0], [1, np.nan], [1, 1]]))
+
+
+def test_kka_needs_an_8_connected_path_without_a_chain():
+    with pytest.raises(ContourError, match="8-connected"):
+        KKA().approximate(np.array([[0, 0], [5, 0], [5, 5]], float))
+
+
+def test_options_are_validated():
+    with pytest.raises(InputError, match="epsilon"):
+        plugins.approximator("douglas-peucker", epsilon=-1)
+    with pytest.raises(InputError, match="relative"):
+        plugins.approximator("douglas-peucker", relative=0.7)
+    with pytest.raises(InputError, match="noise_length"):
+        KKA(noise_length=-2)
+    with pytest.raises(InputError, match="max_deviation"):
+        KKA(max_deviation=float("nan"))
+
+
+def test_douglas_peucker_relative_epsilon_simplifies_more():
+    img = blank()
+    cv2.circle(img, (70, 70), 50, 255, -1)
+    c = contours_of(img)[0]
+    fine = plugins.approximator("douglas-peucker").approximate(c)
+    coarse = plugins.approximator("douglas-peucker", relative=0.02).approximate(c)
+    assert 3 <= len(coarse) < len(fine)
