@@ -248,9 +248,8 @@ class VisibilityMap:
                 raise NoRouteError("no route found before the time limit (timeout)")
             pu = pos[u]
             idx = act[~closed[act]]
-            if len(idx) == 0:
-                continue
-            idx = idx[tangent_at_target(pu, idx)]
+            if len(idx):
+                idx = idx[tangent_at_target(pu, idx)]
             if u != S:
                 # Taut: the obstacle at u stays on the inner side of the turn parent -> u -> v.
                 pp = pos[parent[u]]
