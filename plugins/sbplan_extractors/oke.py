@@ -118,14 +118,29 @@ def find_contours_oke(binary: np.ndarray, *, chains: bool = True) -> list[Contou
     """Functional form of :class:`OkeExtractor` (same parameters and result)."""
     mask = as_mask(binary, name="binary")
     h, w = mask.shape
-    wp, nw = w + 2, w + 1  # padded width, windows per row
-    padded = np.zeros((h + 2, wp), np.uint8)
-    np.minimum(mask, 1, out=padded[1:-1, 1:-1])
+    wp = w + 2  # padded width; windows are indexed on the same grid (window k has pixel k as a)
+    nwin = (h + 1) * wp
+    # Flat padded image with spare zeros at the end: each window then reads pixels k, k + 1,
+    # k + wp and k + wp + 1 as contiguous shifted views. The windows of the last column mix
+    # two rows' padding pixels, are empty (pattern 0) and drop out by themselves.
+    padded = np.zeros((h + 2) * wp + 8, np.uint8)
+    np.bitwise_and(mask, 1, out=padded[:(h + 2) * wp].reshape(h + 2, wp)[1:-1, 1:-1])  # 255 & 1 == 1
 
-    # -- 2x2 window patterns -----------------------------------------------------------------
-    pairs = padded[:, :-1] + (padded[:, 1:] << 1)
-    code = (pairs[:-1] + (pairs[1:] << 2)).ravel()
-    windows = np.flatnonzero((code - np.uint8(1)) < 14)  # patterns 1..14 hold cracks
+    # -- 2x2 window patterns: a + 2b + 4c + 8d, with uint8 adds (numpy's uint8 shifts are slow) --
+    pairs = padded[1:nwin + wp + 1] + padded[1:nwin + wp + 1]
+    pairs += padded[:nwin + wp]
+    # Padded to whole 8-byte words so that empty (0) and full (15) windows are skipped eight
+    # at a time before the per-window test.
+    buf = np.empty(-(-nwin // 8) * 8, np.uint8)
+    code = buf[:nwin]
+    np.add(pairs[wp:], pairs[wp:], out=code)
+    code += code
+    code += pairs[:nwin]
+    buf[nwin:] = 0
+    words = buf.view(np.uint64)
+    busy = np.flatnonzero((words != 0) & (words != np.uint64(0x0F0F0F0F0F0F0F0F)))
+    windows = (busy[:, None] * 8 + np.arange(8)).ravel()
+    windows = windows[(buf[windows] - np.uint8(1)) < 14]  # patterns 1..14 hold cracks
     if len(windows) == 0:
         return []
     wcode = code[windows].astype(np.int64)
@@ -139,11 +154,10 @@ def find_contours_oke(binary: np.ndarray, *, chains: bool = True) -> list[Contou
     second[first[nout == 2] + 1] = 1
     edir = _OUT[ecode, second]
     n = len(ewin)
-    erow = ewin // nw
-    pix = ewin + erow + np.array([0, 1, wp + 1, wp], np.int64)[edir]  # padded flat index of the pixel
+    pix = ewin + np.array([0, 1, wp + 1, wp], np.int64)[edir]  # padded flat index of the pixel
 
     # -- successor pointers ------------------------------------------------------------------
-    head = ewin + np.array([-nw, 1, nw, -1], np.int64)[edir]
+    head = ewin + np.array([-wp, 1, wp, -1], np.int64)[edir]
     hcode = code[head].astype(np.int64)
     hdir = _NEXT[hcode, edir]
     hk = np.searchsorted(windows, head)
@@ -174,7 +188,7 @@ def find_contours_oke(binary: np.ndarray, *, chains: bool = True) -> list[Contou
     # owned by the window one row below the minimum's window.
     shift = np.zeros(ncyc, np.int64)
     hole_ids = np.flatnonzero(is_hole)
-    anchors = first[np.searchsorted(windows, ewin[roots[hole_ids]] + nw)]
+    anchors = first[np.searchsorted(windows, ewin[roots[hole_ids]] + wp)]
     shift[hole_ids] = pos[anchors]
     pos = (pos - shift[cycle]) % lc
     base = np.cumsum(length) - length
@@ -197,31 +211,30 @@ def find_contours_oke(binary: np.ndarray, *, chains: bool = True) -> list[Contou
     np.subtract(flat % wp, 1, out=points[:, 0])
     np.subtract(flat // wp, 1, out=points[:, 1])
 
-    parent = _parents(edir, ewin, erow, nw, wp, cycle, roots, anchors, is_hole)
+    parent = _parents(edir, ewin, wp, cycle, roots, anchors, is_hole)
     return build_contours(points, counts, is_hole, parent, chains=chains)
 
 
-def _parents(edir, ewin, erow, nw, wp, cycle, roots, anchors, is_hole) -> np.ndarray:
+def _parents(edir, ewin, wp, cycle, roots, anchors, is_hole) -> np.ndarray:
     """Nesting tree: a hole's parent is its region's outer boundary, an outer boundary's parent
     the hole around it (or -1)."""
     ncyc = len(roots)
     # Vertical cracks keyed by (row, edge column): an up crack at window (i, j) lies in padded
     # row i, a down crack in row i + 1, both on the edge left of column j + 1.
     vert = np.flatnonzero((edir == _N) | (edir == _S))
-    vrow = erow[vert] + (edir[vert] == _S)
-    vkey = vrow * wp + (ewin[vert] - erow[vert] * nw + 1)
+    # With windows on the padded pixel grid that key is simply window + 1 (+ wp for down).
+    vkey = ewin[vert] + 1 + wp * (edir[vert] == _S)
     srt = np.argsort(vkey, kind="stable")
-    vkey, vrow, vcyc = vkey[srt], vrow[srt], cycle[vert][srt]
+    vkey, vcyc = vkey[srt], cycle[vert][srt]
 
     # The crack where each cycle starts its search: holes at their anchor (an up crack), outer
     # boundaries at their minimum (the down crack left of the region's first pixel).
     start = roots.copy()
     start[is_hole] = anchors
-    srow = erow[start] + (edir[start] == _S)
-    skey = srow * wp + (ewin[start] - erow[start] * nw + 1)
+    skey = ewin[start] + 1 + wp * (edir[start] == _S)
     left = np.searchsorted(vkey, skey) - 1
     found = left >= 0
-    found[found] = vrow[left[found]] == srow[found]
+    found[found] = vkey[left[found]] // wp == skey[found] // wp
     nxt = np.where(found, vcyc[np.maximum(left, 0)], -1)
     # Stop at the first cycle of the other kind (or at the border); otherwise inherit its answer.
     done = (nxt < 0) | (is_hole[np.maximum(nxt, 0)] != is_hole)
