@@ -262,3 +262,22 @@ def test_bad_input_raises_image_error_naming_binary(name, bad):
 def test_both_extractors_are_registered():
     names = plugins.extractor_names()
     assert "oke" in names and "opencv" in names
+
+
+def test_bench_stages_reports_every_registered_stage():
+    """The benchmark runs (structure only: no timing is asserted here)."""
+    from sbplan.bench import stages as bench
+
+    result = bench.measure(repeat=1)
+    names = {(r["stage"], r["name"]) for r in result["rows"]}
+    for name in plugins.extractor_names():
+        assert ("extractor", name) in names
+    for name in plugins.approximator_names():
+        assert ("approximator", name) in names
+    for name in plugins.matcher_names():
+        assert ("matcher", f"{name} describe_many") in names
+    assert result["symbol_contours"] == bench.N_SYMBOLS
+    assert all(r["median_ms"] >= 0 and r["p90_ms"] >= r["median_ms"] for r in result["rows"])
+    assert "oke" in bench.format_table(result)
+    with pytest.raises(InputError, match="repeat"):
+        bench.measure(repeat=0)
