@@ -65,9 +65,10 @@ def test_fourier_beats_chance_by_a_wide_margin(silhouettes, capsys):
 def test_table_output_and_make(tmp_path, capsys):
     out = tmp_path / "made"
     assert main(["bench", "match", "--make", str(out), "--classes", "3", "--per-class", "3",
-                 "--size", "64", "--matchers", "fourier", "--repeat", "1"]) == 0
+                 "--size", "64", "--matchers", "fourier", "--repeat", "1",
+                 "--approximator", "douglas-peucker"]) == 0
     text = capsys.readouterr().out
-    assert "| fourier" in text and "Bullseye" in text
+    assert "| fourier" in text and "Bullseye" in text and "douglas-peucker" in text
     assert len(list(out.glob("*.png"))) == 9
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import ClassVar, Sequence
 
@@ -40,27 +41,22 @@ def fourier_coefficients(outlines: Sequence[np.ndarray], freqs, *, samples: int 
         ``c[:, i]`` is the coefficient of frequency ``freqs[i]``, ``(1/samples) sum_j w_j
         exp(-2 pi i k j / samples)``. Not scale-normalized.
     """
-    freqs = tuple(int(k) for k in freqs)
-    both = tuple(sorted(set(freqs) | {-k for k in freqs}))
-    where = {k: i for i, k in enumerate(both)}
+    k = np.asarray(freqs, dtype=np.int64)
+    if k.ndim != 1 or (2 * np.abs(k) >= samples).any():
+        raise InputError(f"freqs: expected a 1-D list of frequencies with |k| < samples / 2 = {samples / 2:g}")
     x, y = resample_xy(outlines, samples)
-    # Two real FFTs (pocketfft, no BLAS threads) give every coefficient of w = x - i y:
+    # Two real FFTs give every coefficient of w = x - i y:
     # c_k = X_k - i Y_k and c_-k = conj(X_k) - i conj(Y_k) for k >= 0.
-    fx = np.fft.rfft(x, axis=1) / samples
-    fy = np.fft.rfft(y, axis=1) / samples
-    kk = np.abs(np.asarray(both))
-    sx, sy = fx[:, kk], fy[:, kk]
-    negative = np.asarray(both) < 0
-    sx[:, negative] = sx[:, negative].conj()
-    sy[:, negative] = sy[:, negative].conj()
-    coeffs = sx - 1j * sy
+    fx = np.fft.rfft(x, axis=1)[:, np.abs(k)] / samples
+    fy = np.fft.rfft(y, axis=1)[:, np.abs(k)] / samples
+    plus = fx - 1j * fy
+    minus = fx.conj() - 1j * fy.conj()
     # The shoelace on the samples gives the traversal sense (positive = counter-clockwise as
-    # displayed, i.e. in the w plane).
+    # displayed, i.e. in the w plane); reversing a clockwise outline swaps c_k and c_-k.
     area2 = np.einsum("ij,ij->i", y[:, :-1], x[:, 1:]) - np.einsum("ij,ij->i", x[:, :-1], y[:, 1:]) \
         + y[:, -1] * x[:, 0] - x[:, -1] * y[:, 0]
-    pos = [where[k] for k in freqs]
-    neg = [where[-k] for k in freqs]
-    return np.where((area2 < 0)[:, None], coeffs[:, neg], coeffs[:, pos])
+    take_plus = (k >= 0)[None, :] != (area2 < 0)[:, None]
+    return np.where(take_plus, plus, minus)
 
 
 def _frequencies(harmonics: int) -> np.ndarray:
@@ -68,6 +64,14 @@ def _frequencies(harmonics: int) -> np.ndarray:
     h_neg = harmonics // 2
     h_pos = harmonics - h_neg
     return np.concatenate([-np.arange(1, h_neg + 1), np.arange(2, h_pos + 2)])
+
+
+@functools.lru_cache(maxsize=16)
+def _plan(harmonics: int, mirror_terms: int) -> tuple[np.ndarray, np.ndarray]:
+    """The kept frequencies and all frequencies needed: [1, kept, 1 + j, 1 - j], j = 2, 3, ..."""
+    kept = _frequencies(harmonics)
+    j = np.arange(2, mirror_terms + 2)
+    return kept, np.concatenate([[1], kept, 1 + j, 1 - j]).astype(np.int64)
 
 
 def fourier_descriptors(outlines: Sequence[np.ndarray], *, samples: int = 128, harmonics: int = 20,
@@ -81,9 +85,7 @@ def fourier_descriptors(outlines: Sequence[np.ndarray], *, samples: int = 128, h
     translation, rotation, scale and start point like the amplitudes, but changing sign when the
     shape is mirrored (amplitudes alone cannot tell a shape from its mirror image).
     """
-    kept = _frequencies(harmonics)
-    j = np.arange(2, mirror_terms + 2)
-    freqs = np.concatenate([[1], kept, 1 + j, 1 - j]).astype(int)
+    kept, freqs = _plan(harmonics, mirror_terms)
     c = fourier_coefficients(outlines, freqs, samples=samples)
     m = len(c)
     if m == 0:

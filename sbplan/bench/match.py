@@ -31,6 +31,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--size", type=int, default=128, help="image size in pixels with --make (default 128)")
     parser.add_argument("--seed", type=int, default=0, help="random seed for --make (default 0)")
     parser.add_argument("--matchers", default="", help="comma-separated matcher names (default: all installed)")
+    parser.add_argument("--approximator", default="", metavar="NAME",
+                        help="approximate each outline by this approximator first, as the detection "
+                             "pipeline does (default: match the raw pixel outlines)")
     parser.add_argument("--repeat", type=int, default=5, help="timing repetitions, the median is shown (default 5)")
     parser.add_argument("--json", action="store_true", help="print the results as JSON instead of a table")
 
@@ -134,12 +137,16 @@ def run(args: argparse.Namespace) -> int:
     data = load_silhouettes(folder)
     if len(set(data.labels)) < 2:
         raise InputError(f"{folder}: needs at least two classes, found {len(set(data.labels))}")
+    outlines = data.outlines
+    if args.approximator:
+        approx = plugins.approximator(args.approximator)
+        outlines = [approx.approximate(o) for o in outlines]
     names = [s.strip() for s in args.matchers.split(",") if s.strip()] or plugins.matcher_names()
     rows = []
     for name in names:
         matcher = plugins.matcher(name)
         try:
-            result = evaluate(matcher, data.outlines, data.labels, repeat=args.repeat)
+            result = evaluate(matcher, outlines, data.labels, repeat=args.repeat)
         except SbplanError as exc:  # a third-party matcher that fails is reported, not fatal
             result = {"error": str(exc)}
         rows.append({"matcher": name, **result})
@@ -149,6 +156,8 @@ def run(args: argparse.Namespace) -> int:
         "shapes": len(data.labels),
         "classes": len(sizes),
         "class_sizes": sorted(set(sizes.values())),
+        "approximator": args.approximator or None,
+        "mean_vertices": round(float(np.mean([len(o) for o in outlines])), 1),
         "chance_bullseye_percent": round(100 * chance_level(data.labels), 2),
         "bullseye_convention": "query included, class-mates among the first 2*C ranks divided by C",
         "machine": {"cores": os.cpu_count(), "python": platform.python_version()},
@@ -158,7 +167,8 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(report, indent=2))
         return 0
     print(f"{report['shapes']} shapes, {report['classes']} classes in {report['folder']}; "
-          f"chance Bullseye {report['chance_bullseye_percent']:.1f} %")
+          f"chance Bullseye {report['chance_bullseye_percent']:.1f} %; outlines: "
+          f"{args.approximator or 'raw pixels'}, {report['mean_vertices']} vertices on average")
     header = ("matcher", "Bullseye %", "describe µs", "describe_many µs/shape", "distance µs",
               "matrix ns/pair", "K")
     lines = []
