@@ -1,0 +1,38 @@
+"""``sbplan tui``: the operator's terminal app (Textual). Textual is imported only in ``run``."""
+
+from __future__ import annotations
+
+import argparse
+
+HELP = "the operator's terminal app: calibrate, detect, plan and replan"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("map", nargs="?", default=None, metavar="MAP_DIR",
+                        help="map folder with reference.png, scene-*.png and workspace.toml")
+    parser.add_argument("--no-auto", action="store_true",
+                        help="do not calibrate, detect and plan on their own; wait for the keys")
+    parser.add_argument("--images", choices=("auto", "halfcell", "unicode"), default="auto",
+                        help="how pictures are drawn: the terminal's graphics (sixel, kitty) when detected, "
+                             "else half blocks (default: %(default)s)")
+
+
+def run(args: argparse.Namespace) -> int:
+    import sys
+
+    from pathlib import Path
+
+    from ..errors import InputError, MapFormatError
+
+    if args.map is not None and not Path(args.map).is_dir():
+        raise MapFormatError(f"{args.map}: no such map folder")
+    if not sys.stdout.isatty():
+        raise InputError("tui: standard output is not a terminal; run 'sbplan tui' in a terminal")
+    # textual-image asks the terminal what it can draw; that must happen before Textual takes it over
+    import textual_image.widget as tiw
+
+    image_class = {"auto": tiw.Image, "halfcell": tiw.HalfcellImage, "unicode": tiw.UnicodeImage}[args.images]
+    from ..tui.app import SbplanApp
+
+    SbplanApp(args.map, auto=not args.no_auto, image_class=image_class).run()
+    return 0

@@ -1,0 +1,1 @@
+"""Screens of the sbplan terminal app: calibration, detection, route, help."""

@@ -1,0 +1,163 @@
+"""Screen 1: calibrate on the reference image (empty floor)."""
+
+from __future__ import annotations
+
+from textual.app import ComposeResult
+from textual.binding import Binding
+from textual.containers import Horizontal, Vertical, VerticalScroll
+from textual.widgets import Button, Footer, Header, Label, Select, Static
+
+from ...errors import CalibrationError, InputError
+from ..session import STAGE_KINDS, display_path, stage_names
+from ..widgets.busy import Busy
+from ..widgets.path_input import PathInput
+from ..widgets.picture import Picture
+from .base import JobScreen
+
+LEGEND = "[#2890c8]━ cells[/]  [#3cc83c]▢ symbols[/]  [#e62828]+ centres[/]  [#00c8e6]× rejected contours[/]"
+
+
+class CalibrationScreen(JobScreen):
+    """The reference image with the fitted grid, the derived threshold and margin, stage choice."""
+
+    TITLE = "sbplan"
+    SUB_TITLE = "1 calibration"
+    BINDINGS = [
+        Binding("o", "open_reference", "Open"),
+        Binding("c", "calibrate", "Calibrate"),
+        Binding("ctrl+s", "save", "Save"),
+    ]
+
+    def compose(self) -> ComposeResult:
+        s = self.session
+        from ...calibration import DEFAULT_STAGES
+
+        self._names = names = stage_names()
+        yield Header()
+        with Horizontal(classes="body"):
+            with Vertical(classes="main"):
+                yield Picture("no reference image: type its path at the right and press Enter", id="cal-picture")
+                yield Static(LEGEND, classes="legend")
+            with VerticalScroll(classes="side"):
+                yield Label("Reference image", classes="heading")
+                yield PathInput(display_path(s.reference_path), suffixes=(".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".json"),
+                                placeholder="path of the empty-floor image", id="ref-path")
+                yield Label("Stages", classes="heading")
+                for kind in STAGE_KINDS:
+                    options = [(n, n) for n in names[kind]]
+                    value = DEFAULT_STAGES[kind] if DEFAULT_STAGES[kind] in names[kind] else Select.NULL
+                    yield Label(kind, classes="field")
+                    yield Select(options, value=value, allow_blank=value is Select.NULL, id=f"stage-{kind}",
+                                 compact=True)
+                yield Button("Calibrate (c)", id="calibrate", variant="primary", compact=True)
+                yield Static("not calibrated", id="cal-stats")
+                yield Label("Save calibration to", classes="heading")
+                yield PathInput(str(s.out_dir / "calibration.json"), suffixes=(".json",), id="cal-path")
+                yield Button("Save (ctrl+s)", id="save", compact=True)
+        yield Busy()
+        yield Footer()
+
+    def on_mount(self) -> None:
+        if self.session.reference is not None:
+            self._show()
+        elif self.session.reference_path is not None:
+            self.action_open_reference(calibrate_after=self.app.auto)
+
+    # -- actions ---------------------------------------------------------------------------------
+    def action_open_reference(self, calibrate_after: bool = False) -> None:
+        """Open the reference named in the path input (an image, or a saved calibration .json)."""
+        path = self.query_one("#ref-path", PathInput).value.strip()
+        if not path:
+            self.app.report_error(InputError("reference: type the path of the empty-floor image"))
+            return
+        if path.lower().endswith(".json"):
+            self.start_job(f"loading calibration {path}", lambda: self.session.load_calibration(path),
+                           lambda cal: self._calibrated(cal, loaded=path))
+            return
+
+        def done(_image) -> None:
+            self.session.calibration = None
+            self._show()
+            if calibrate_after:
+                self.action_calibrate()
+
+        self.start_job(f"opening {path}", lambda: self.session.load_reference(path), done)
+
+    def chosen_stages(self) -> dict[str, str]:
+        out = {}
+        for kind in STAGE_KINDS:
+            value = self.query_one(f"#stage-{kind}", Select).value
+            if value is not Select.NULL and value is not None:
+                out[kind] = value
+        return out
+
+    def action_calibrate(self) -> None:
+        stages = self.chosen_stages()
+        label = "calibrating with " + ", ".join(stages.values())
+        self.start_job(label, lambda: self.session.calibrate(stages), self._calibrated)
+
+    def _calibrated(self, cal, loaded: str | None = None) -> None:
+        self.session.detection = None
+        self.session.route = self.session.old_route = None
+        for kind in STAGE_KINDS:
+            name = cal.stages.get(kind, {}).get("name")
+            select = self.query_one(f"#stage-{kind}", Select)
+            if name is not None and name in self._names[kind]:
+                select.value = name
+        self._show()
+        self.notify(f"calibration {'loaded' if loaded else 'done'}: grid {cal.grid.cols} x {cal.grid.rows}, "
+                    f"threshold {cal.threshold:.4f}", title="calibration")
+
+    def action_save(self) -> None:
+        cal = self.session.calibration
+        if cal is None:
+            self.app.report_error(CalibrationError("calibration: nothing to save; calibrate first (c)"))
+            return
+        path = self.query_one("#cal-path", PathInput).value.strip() or str(self.session.out_dir / "calibration.json")
+        self.start_job(f"saving {path}", lambda: cal.save(path),
+                       lambda p: self.notify(f"saved {display_path(p)}", title="calibration"))
+
+    # -- view ------------------------------------------------------------------------------------
+    def _show(self) -> None:
+        from ..render import calibration_overlay
+
+        s = self.session
+        picture = self.query_one("#cal-picture", Picture)
+        stats = self.query_one("#cal-stats", Static)
+        cal = s.calibration
+        if s.reference is not None and cal is not None and tuple(cal.image_shape) == s.reference.shape[:2]:
+            picture.show(calibration_overlay(s.reference, cal))
+        else:
+            picture.show(s.reference)
+        if cal is None:
+            stats.update("not calibrated" if s.reference is None else
+                         f"{s.reference.shape[1]} x {s.reference.shape[0]} px; not calibrated: press c")
+            return
+        st = cal.stats
+        other = st.get("other_distance_min")
+        lines = [
+            f"grid        {cal.grid.cols} cols x {cal.grid.rows} rows",
+            f"pitch       {cal.grid.pitch_px[0]:.1f} x {cal.grid.pitch_px[1]:.1f} px",
+            f"symbols     {st.get('symbols', cal.symbols_expected)} of {st.get('after_length_filter', '?')} contours",
+            f"rejected    {len(st.get('rejected_centres_px', []))} contours",
+            f"threshold   {cal.threshold:.4f}",
+            f"margin      {cal.margin:.2f}x" + ("" if cal.margin > 1 else "  (does not separate!)"),
+            f"max symbol d {st.get('symbol_distance_max', float('nan')):.4f}",
+            f"min other d  {other:.4f}" if other is not None else "min other d  -",
+            f"tolerance   {cal.grid.tolerance_px:.1f} px",
+            f"metres      {cal.workspace.pitch_m[0]:g} x {cal.workspace.pitch_m[1]:g} per cell",
+        ]
+        stats.update("\n".join(lines))
+
+    # -- events ----------------------------------------------------------------------------------
+    def on_input_submitted(self, event: PathInput.Submitted) -> None:
+        if event.input.id == "ref-path":
+            self.action_open_reference()
+        elif event.input.id == "cal-path":
+            self.action_save()
+
+    def on_button_pressed(self, event: Button.Pressed) -> None:
+        if event.button.id == "calibrate":
+            self.action_calibrate()
+        elif event.button.id == "save":
+            self.action_save()
