@@ -36,7 +36,7 @@ import numpy as np
 from sbplan.errors import ContourError, InputError
 from sbplan.stages import ContourApproximator, option
 
-from ._common import contour_chain, contour_points, segment_distances, three_vertices
+from ._common import contour_chain, contour_points, three_vertices
 
 __all__ = ["KKA", "straight_pieces", "is_digital_straight"]
 
@@ -154,11 +154,25 @@ def straight_pieces(chain) -> np.ndarray:
     return np.sort((np.asarray(cuts, dtype=np.int64) + start) % n)
 
 
-def _piece_cost(points: np.ndarray, i: int, j: int) -> float:
-    """Largest distance of the contour points i..j (cyclic, inclusive) from the chord i-j."""
+def _span_costs(points: np.ndarray, first, last) -> np.ndarray:
+    """For each span, the largest distance of the contour points first..last (cyclic, inclusive)
+    from the chord first-last; all spans in one vectorized pass. Shape (S,)."""
     n = len(points)
-    idx = np.arange(i, i + ((j - i) % n or n) + 1) % n
-    return float(segment_distances(points[idx], points[i], points[j]).max())
+    first = np.asarray(first, dtype=np.int64)
+    last = np.asarray(last, dtype=np.int64)
+    counts = (last - first) % n
+    counts[counts == 0] = n
+    counts += 1
+    starts = np.zeros(len(first), np.int64)
+    np.cumsum(counts[:-1], out=starts[1:])
+    idx = (np.arange(counts.sum()) - np.repeat(starts - first, counts)) % n
+    a = np.repeat(points[first], counts, axis=0)
+    ab = np.repeat(points[last] - points[first], counts, axis=0)
+    ap = points[idx] - a
+    den = np.einsum("ij,ij->i", ab, ab)
+    t = np.clip(np.einsum("ij,ij->i", ap, ab) / np.where(den > 0, den, 1.0), 0.0, 1.0)
+    d = ap - t[:, None] * ab
+    return np.maximum.reduceat(np.einsum("ij,ij->i", d, d), starts) ** 0.5
 
 
 @dataclass(kw_only=True, frozen=True)
@@ -199,14 +213,15 @@ class KKA(ContourApproximator):
             if lengths[i] >= self.noise_length:
                 break
             prev_v, nxt_v, nxt2_v = verts[i - 1], verts[(i + 1) % k], verts[(i + 2) % k]
-            into_prev = _piece_cost(pts, prev_v, nxt_v)   # drop vertex i
-            into_next = _piece_cost(pts, verts[i], nxt2_v)  # drop vertex i + 1
+            # cost of dropping vertex i (merge into the previous piece) or i + 1 (into the next)
+            into_prev, into_next = _span_costs(pts, [prev_v, verts[i]], [nxt_v, nxt2_v])
             del verts[i if into_prev <= into_next else (i + 1) % k]
 
         # Step 3: remove the cheapest boundary while the merged piece stays within max_deviation.
         k = len(verts)
         if k > 3:
-            cost = [_piece_cost(pts, verts[i - 1], verts[(i + 1) % k]) for i in range(k)]
+            v = np.asarray(verts)
+            cost = _span_costs(pts, np.roll(v, 1), np.roll(v, -1)).tolist()
             while len(verts) > 3:
                 i = int(np.argmin(cost))
                 if cost[i] > self.max_deviation:
@@ -214,8 +229,9 @@ class KKA(ContourApproximator):
                 del verts[i]
                 del cost[i]
                 k = len(verts)
-                for j in (i - 1, i % k):
-                    cost[j] = _piece_cost(pts, verts[j - 1], verts[(j + 1) % k])
+                js = [(i - 1) % k, i % k]
+                new = _span_costs(pts, [verts[j - 1] for j in js], [verts[(j + 1) % k] for j in js])
+                cost[js[0]], cost[js[1]] = float(new[0]), float(new[1])
         if len(verts) < 3:
             return three_vertices(pts)
         return pts[np.asarray(verts)].copy()
