@@ -97,8 +97,7 @@ def test_fourier_tells_mirror_images_apart_and_amplitudes_alone_do_not():
     assert m.distance(m.describe(p), m.describe(mirrored)) > 0.05
     pure = plugins.matcher("fourier", mirror_terms=0)
     assert pure.distance(pure.describe(p), pure.describe(mirrored)) <= EXACT_TOL["fourier"]
-    # but a mirrored copy is still far closer than another shape would be ... and a symmetric
-    # shape equals its mirror image
+    # a symmetric shape equals its mirror image
     square = np.array([[0, 0], [0, 10], [10, 10], [10, 0]], float)
     assert m.distance(m.describe(square), m.describe(square * [-1, 1])) <= EXACT_TOL["fourier"]
 
@@ -161,3 +160,18 @@ def test_options_and_descriptor_shapes_are_validated():
         m.distance_matrix(np.zeros((2, 10)), np.zeros((2, 11)))
     with pytest.raises(InputError, match="NaN"):
         m.distance_matrix(np.full((1, 10), np.nan), np.zeros((1, 10)))
+
+
+def test_hu_distance_is_opencv_i2_on_the_terms_opencv_keeps():
+    from sbplan_matchers.hu_moments import HU_EPS
+
+    a = np.array([[0, 0], [40, 0], [40, 10], [10, 10], [10, 60], [0, 60]], np.float32)
+    b = np.array([[0, 0], [45, 0], [45, 14], [14, 14], [14, 55], [0, 55]], np.float32)
+    ha, hb = (cv2.HuMoments(cv2.moments(p))[:, 0] for p in (a, b))
+    both = (np.abs(ha) > HU_EPS) & (np.abs(hb) > HU_EPS)
+    assert (np.sign(ha[both]) == np.sign(hb[both])).all() and not both.all()  # the case documented
+    m = plugins.matcher("hu-moments")
+    da, db = m.describe(a), m.describe(b)
+    expected = cv2.matchShapes(a, b, cv2.CONTOURS_MATCH_I2, 0)
+    assert np.abs(da - db)[both].sum() == pytest.approx(expected, rel=1e-5)
+    assert m.distance(da, db) >= expected
