@@ -30,16 +30,6 @@ def contour_chain(contour, points: np.ndarray) -> np.ndarray:
     return lut[step[:, 1].astype(np.int64) + 1, step[:, 0].astype(np.int64) + 1]
 
 
-def segment_distances(points: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Distances of points (N, 2) to the segment a-b (each shape (2,))."""
-    ab = b - a
-    den = float(ab @ ab)
-    ap = points - a
-    t = np.clip(ap @ ab / den, 0.0, 1.0) if den > 0 else np.zeros(len(points))
-    d = ap - t[:, None] * ab
-    return np.hypot(d[:, 0], d[:, 1])
-
-
 def polygon_deviation(points: np.ndarray, polygon: np.ndarray) -> float:
     """The largest distance from any of ``points`` (N, 2) to the closed polygon's edges (M, 2)."""
     a = polygon
