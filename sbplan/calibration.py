@@ -20,13 +20,14 @@ from . import plugins
 from .errors import CalibrationError, InputError
 from .grid import Grid, fit_grid
 from .imageio import as_gray, load_image, write_json
+from .outline_check import outline_deviation, signed_distance_map
 from .workspace import Workspace, load_workspace
 
 FORMAT = "sbplan.calibration/1"
 
 #: The stages used when none is named: the fast ones (the paper's OKE and KKA are selectable).
 DEFAULT_STAGES = {
-    "binarizer": "local-mean",
+    "binarizer": "background",
     "extractor": "opencv",
     "approximator": "douglas-peucker",
     "matcher": "fourier",
@@ -58,6 +59,9 @@ class Calibration:
     symbol_area_px, symbol_points_range : float, (int, int)
         Median symbol area, and the range of contour lengths (boundary pixels) kept by the length
         filter during detection.
+    outline_tolerance_px : float
+        How far a matched symbol's outline may stray from its cell's reference outline, beyond a
+        common shift, before the symbol counts as partly hidden (see :mod:`sbplan.outline_check`).
     workspace : Workspace
     """
 
@@ -71,6 +75,7 @@ class Calibration:
     margin: float
     symbol_area_px: float
     symbol_points_range: tuple[int, int]
+    outline_tolerance_px: float = 3.0
     workspace: Workspace = field(default_factory=Workspace)
     stats: dict[str, Any] = field(default_factory=dict)
 
@@ -110,6 +115,7 @@ class Calibration:
                 "margin": self.margin,
                 "area_px": self.symbol_area_px,
                 "points_range": list(self.symbol_points_range),
+                "outline_tolerance_px": self.outline_tolerance_px,
                 "polygons": [np.round(p, 3).tolist() for p in self.symbol_polygons],
             },
             "other_polygons": [np.round(p, 3).tolist() for p in self.other_polygons],
@@ -138,6 +144,7 @@ class Calibration:
                 margin=float(sym["margin"]),
                 symbol_area_px=float(sym["area_px"]),
                 symbol_points_range=(int(sym["points_range"][0]), int(sym["points_range"][1])),
+                outline_tolerance_px=float(sym["outline_tolerance_px"]),
                 workspace=Workspace.from_json(data["workspace"]),
                 stats=dict(data.get("stats", {})),
             )
@@ -272,8 +279,21 @@ def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str 
     reference_descriptor = np.median(shapes.descriptors[members], axis=0)
     dist = chosen["matcher"].distance_matrix(shapes.descriptors, reference_descriptor[None, :])[:, 0]
     grid = fit_grid(shapes.centres[members])
-    threshold, margin = derive_threshold(dist[members], np.delete(dist, members))
+    # What a symbol looks like in later images is not what it looks like in this one: measure the
+    # symbols again in degraded copies of the reference (defocus, dimmer light, sensor noise).
     cells = grid.assign(shapes.centres[members])
+    cell_area = np.empty((grid.rows, grid.cols))
+    cell_area[cells[:, 0], cells[:, 1]] = shapes.areas[members]
+    symbol_polygons = [shapes.polygons[i] for i in members[np.argsort(cells[:, 0] * grid.cols + cells[:, 1])]]
+    distance_map = signed_distance_map(symbol_polygons, gray.shape)
+    degraded, deviations = _degraded_symbols(gray, grid, reference_descriptor, cell_area, distance_map,
+                                             binarizer=chosen["binarizer"], points_range=points_range, **kw)
+    # An obstacle that clips a symbol moves part of its outline by more than light and focus
+    # move it; the tolerance sits outside what the degraded copies showed, and at least 1 px.
+    outline_tolerance = float(max(1.25 * np.max(deviations), 1.0)) if len(deviations) else 3.0
+    confusers = confuser_distances(chosen["matcher"], reference_descriptor, float(np.median(shapes.areas[members])))
+    others = np.concatenate([np.delete(dist, members), confusers])
+    threshold, margin = derive_threshold(np.concatenate([dist[members], degraded]), others)
     order = np.argsort(cells[:, 0] * grid.cols + cells[:, 1])
     symbol_idx = members[order]
     others = np.setdiff1d(np.arange(len(shapes.polygons)), members)
@@ -299,27 +319,89 @@ def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str 
         margin=margin,
         symbol_area_px=float(np.median(shapes.areas[members])),
         symbol_points_range=(int(n_points.min() * 0.7), int(np.ceil(n_points.max() * 1.4))),
+        outline_tolerance_px=outline_tolerance,
         workspace=workspace,
         stats=stats,
     )
 
 
 def derive_threshold(symbol_distances: np.ndarray, other_distances: np.ndarray) -> tuple[float, float]:
-    """Match threshold from the reference's own data, and the margin it leaves.
+    """Match threshold from measured distances, and the margin it leaves.
 
-    Symbols in later images are blurrier, noisier and differently lit than in the reference, so the
-    threshold sits well above the symbols' own spread (four times their largest distance) but never
-    beyond halfway to the nearest other contour. Returns ``(threshold, margin)`` where
-    ``margin = nearest other / farthest symbol`` (above 1: the reference separates them).
+    ``symbol_distances`` are the symbols' distances to the reference descriptor (in the reference
+    and in degraded copies of it); ``other_distances`` those of everything that is not a symbol
+    (the reference's other contours and the round and rectangular shapes that lighting errors and
+    boxes produce). The threshold is twice the farthest symbol, but never beyond halfway to the
+    nearest other shape. Returns ``(threshold, margin)``, ``margin = nearest other / farthest
+    symbol`` (above 1: they separate).
     """
     d_sym = float(np.max(symbol_distances)) if len(symbol_distances) else 0.0
     d_other = float(np.min(other_distances)) if len(other_distances) else np.inf
     floor = max(d_sym, 1e-6)
-    threshold = max(4.0 * floor, 0.02)
+    threshold = 2.0 * floor
     if np.isfinite(d_other):
         threshold = min(threshold, d_sym + 0.5 * (d_other - d_sym))
     margin = d_other / floor if np.isfinite(d_other) else float("inf")
     return float(threshold), float(margin)
+
+
+def confuser_distances(matcher, descriptor: np.ndarray, area: float) -> np.ndarray:
+    """Distances from the reference descriptor to shapes a symbol must never be taken for.
+
+    Circles and ellipses (the round contours of lighting errors, the paper's warning) and squares
+    and rectangles (boxes, labels), all of the symbol's area.
+    """
+    t = np.linspace(0, 2 * np.pi, 96, endpoint=False)
+    shapes = []
+    for aspect in (1.0, 1.3, 1.7, 2.5, 4.0):
+        a = np.sqrt(area * aspect / np.pi)
+        shapes.append(np.column_stack([a * np.cos(t), a / aspect * np.sin(t)]))
+        b = np.sqrt(area * aspect)
+        w, h = b / 2, b / aspect / 2
+        shapes.append(np.array([[-w, -h], [w, -h], [w, h], [-w, h]]))
+    return matcher.distance_matrix(matcher.describe_many(shapes), descriptor[None, :])[:, 0]
+
+
+def _degraded_symbols(gray: np.ndarray, grid: Grid, descriptor: np.ndarray, cell_area: np.ndarray,
+                      distance_map: np.ndarray, *,
+                      binarizer, extractor, approximator, matcher, points_range) -> tuple[np.ndarray, np.ndarray]:
+    """The reference's symbols in defocused, dimmed, dark-and-grainy and noisy copies of it.
+
+    Returns their descriptor distances to ``descriptor`` and their outlines' deviations from the
+    reference outlines (:func:`sbplan.outline_check.outline_deviation`).
+    """
+    import cv2
+
+    rng = np.random.default_rng(0)  # reproducible noise
+    g = gray.astype(np.float64)
+    copies = [
+        cv2.GaussianBlur(gray, (0, 0), 2.0),
+        cv2.convertScaleAbs(gray, alpha=0.6),
+        np.clip(0.3 * g + rng.normal(0, 4, g.shape), 0, 255).astype(np.uint8),
+        np.clip(g + rng.normal(0, 8, g.shape), 0, 255).astype(np.uint8),
+    ]
+    distances, deviations = [], []
+    for image in copies:
+        shapes = extract_shapes(image, binarizer=binarizer, extractor=extractor, approximator=approximator,
+                                matcher=matcher, points_range=points_range)
+        if not shapes.polygons:
+            continue
+        cells = grid.assign(shapes.centres)
+        ok = cells[:, 0] >= 0
+        ratio = np.full(len(cells), np.inf)
+        ratio[ok] = shapes.areas[ok] / cell_area[cells[ok, 0], cells[ok, 1]]
+        ok &= np.abs(np.log(ratio)) < np.log(1.3)
+        d = matcher.distance_matrix(shapes.descriptors[ok], descriptor[None, :])[:, 0]
+        # one shape per cell: the best match (a cell may also hold the odd noise blob)
+        flat = cells[ok, 0] * grid.cols + cells[ok, 1]
+        order = np.lexsort((d, flat))
+        first = order[np.r_[True, flat[order][1:] != flat[order][:-1]]]
+        distances.append(d[first])
+        kept = np.flatnonzero(ok)[first]
+        deviations.append(outline_deviation([shapes.polygons[i] for i in kept], distance_map))
+    if not distances:
+        return np.zeros(0), np.zeros(0)
+    return np.concatenate(distances), np.concatenate(deviations)
 
 
 def _symbol_members(shapes: Shapes, matcher, *, symbol: Any, chosen: dict) -> np.ndarray:

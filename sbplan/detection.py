@@ -19,6 +19,7 @@ from .errors import DetectionError
 from .geometry import centroids, signed_areas
 from .imageio import as_gray, load_image
 from .obstacles import Obstacle, find_obstacles
+from .outline_check import outline_deviation, signed_distance_map
 
 FORMAT = "sbplan.detection/1"
 
@@ -117,6 +118,7 @@ class Detector:
             self.threshold, _ = derive_threshold(d_sym, d_other)
         areas = np.abs(signed_areas(cal.symbol_polygons))
         self.cell_area = areas.reshape(cal.grid.rows, cal.grid.cols)
+        self.distance_map = signed_distance_map(cal.symbol_polygons, cal.image_shape)
         self.stage_names = {"binarizer": self.binarizer.name, "extractor": self.extractor.name,
                             "approximator": self.approximator.name, "matcher": self.matcher.name,
                             "mapper": self.mapper.name}
@@ -161,11 +163,18 @@ class Detector:
                 areas = np.abs(signed_areas(hit_polygons))
                 cells = cal.grid.assign(centres)
                 ok = cells[:, 0] >= 0
-                # A fixed camera sees each cell's symbol at one size: a shape of the right form
-                # but the wrong size (a reflection, a print on a box) is not that symbol.
-                ratio = np.ones(len(hit))
+                # A fixed camera sees each cell's symbol at one size. Light and focus scale every
+                # symbol alike, so the frame's median ratio is divided out; what remains is a
+                # symbol grown or shrunk on its own: partly hidden, or not the symbol at all.
+                ratio = np.full(len(hit), np.inf)
                 ratio[ok] = areas[ok] / self.cell_area[cells[ok, 0], cells[ok, 1]]
-                ok &= np.abs(np.log(np.maximum(ratio, 1e-9))) < np.log(1.3)
+                ok &= np.abs(np.log(ratio)) < np.log(1.3)
+                # ... and at one place: an outline that strays from its cell's reference outline
+                # more than light and focus make it is partly hidden.
+                if ok.any():
+                    idx = np.flatnonzero(ok)
+                    deviation = outline_deviation([hit_polygons[i] for i in idx], self.distance_map)
+                    ok[idx[deviation > cal.outline_tolerance_px]] = False
                 found[cells[ok, 0], cells[ok, 1]] = True
                 matched, candidates = centres[ok], centres[~ok]
         else:

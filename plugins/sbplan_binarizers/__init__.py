@@ -5,8 +5,10 @@ from sbplan.hookspecs import hookimpl
 
 @hookimpl
 def sbplan_register_stages(registry):
+    from .background import BackgroundBinarizer
     from .local_mean import LocalMeanBinarizer
     from .otsu import OtsuBinarizer
 
+    registry.add(BackgroundBinarizer)
     registry.add(LocalMeanBinarizer)
     registry.add(OtsuBinarizer)

@@ -9,7 +9,7 @@ symbol's contrast is smaller in grey levels, but not in ratio.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
@@ -30,6 +30,8 @@ class LocalMeanBinarizer(Binarizer):
     offset: float = option(0.18, "how much darker than the local mean ink is, as a fraction of the mean")
     min_contrast: int = option(6, "grey levels below the local mean that ink must be at the least")
     downscale: int = option(4, "the local mean is computed on an image this many times smaller (speed)")
+    opening: int = option(-1, "side of the square ink must contain (morphological opening); 0 = off, "
+                                "-1 = a 25th of the symbol size, at least 3")
 
     def __post_init__(self) -> None:
         if self.window < 0 or (self.window and (self.window < 3 or self.window % 2 == 0)):
@@ -38,16 +40,19 @@ class LocalMeanBinarizer(Binarizer):
             raise InputError(f"offset: must be in [0, 1), got {self.offset}")
         if self.min_contrast < 0:
             raise InputError(f"min_contrast: must be >= 0, got {self.min_contrast}")
+        if self.opening < -1:
+            raise InputError(f"opening: must be -1 (automatic), 0 (off) or a side in pixels, got {self.opening}")
         if self.downscale < 1:
             raise InputError(f"downscale: must be >= 1, got {self.downscale}")
 
     def with_symbol_size(self, size_px: float) -> "LocalMeanBinarizer":
         """This binarizer with its window fitted to symbols of about ``size_px`` pixels across."""
-        if self.window:
-            return self
-        window = int(round(size_px * 2.5)) | 1
-        return LocalMeanBinarizer(window=max(window, 15), offset=self.offset,
-                                  min_contrast=self.min_contrast, downscale=self.downscale)
+        fitted = self
+        if not self.window:
+            fitted = replace(fitted, window=max(int(round(size_px * 2.5)) | 1, 15))
+        if self.opening == -1:
+            fitted = replace(fitted, opening=max(3, int(round(size_px / 25))))
+        return fitted
 
     def binarize(self, gray: np.ndarray) -> np.ndarray:
         gray = as_gray(gray, name="gray")
@@ -67,4 +72,12 @@ class LocalMeanBinarizer(Binarizer):
         scale = 1.0 - self.offset
         thr = cv2.convertScaleAbs(mean, alpha=scale)
         thr = np.minimum(thr, cv2.subtract(mean, self.min_contrast))
-        return gray < thr
+        ink = (gray < thr).view(np.uint8)
+        opening = 3 if self.opening == -1 else self.opening
+        if opening > 1:
+            # Shadow edges and texture lines are thin dark streaks; where one touches a symbol it
+            # welds onto the symbol's outline and changes its shape. An opening removes streaks
+            # thinner than the square and leaves the symbols' broad strokes as they are.
+            kernel = cv2.getStructuringElement(cv2.MORPH_RECT, (opening, opening))
+            ink = cv2.morphologyEx(ink, cv2.MORPH_OPEN, kernel)
+        return ink.view(bool)
