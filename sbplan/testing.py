@@ -1,0 +1,709 @@
+"""The plugin author's test kit: pytest fixtures and a contract test suite for every stage kind.
+
+Use it from a test module, no conftest needed::
+
+    from sbplan.testing import MatcherContract, calibrated_pipeline, register_stage, tiny_floor  # noqa: F401
+
+    class TestMyMatcher(MatcherContract):
+        stage_class = MyMatcher          # or: stage_name = "mine" (looked up through the registry)
+
+    def test_in_the_pipeline(calibrated_pipeline, register_stage):
+        register_stage(MyMatcher)
+        detection = calibrated_pipeline.detect(matcher="mine")
+        assert calibrated_pipeline.cell_errors(detection) == 0
+
+Importing a fixture into a test module makes pytest use it there. The same fixtures are available
+everywhere when this module is loaded as a pytest plugin (``pytest -p sbplan.testing``).
+
+Fixtures
+--------
+tiny_floor : TinyFloor (session scope)
+    A rendered 320 x 240 floor with 4 x 3 symbols: the empty reference, one scene with obstacles,
+    and the scene's ground truth.
+calibrated_pipeline : CalibratedPipeline (session scope)
+    The calibration of ``tiny_floor`` with the default stages, and ``detect(**stages)``.
+register_stage : callable (function scope)
+    ``register_stage(cls)`` registers a stage class in the process-wide registry for one test.
+
+Contract suites
+---------------
+:class:`BinarizerContract`, :class:`ExtractorContract`, :class:`ApproximatorContract`,
+:class:`MatcherContract`, :class:`MapperContract`, :class:`PlannerContract`: subclass one in a
+module whose name pytest collects (``class TestX(MatcherContract)``) and set ``stage_class`` (with
+``stage_options``) or ``stage_name``, or override the ``stage`` fixture. Every ``check_*`` function
+is also usable on its own; :func:`check_stage` runs the whole contract of a stage's kind and
+raises ``AssertionError`` on the first violation.
+
+Pictures and shapes used by the checks are made here with numpy and OpenCV; nothing is downloaded.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+from dataclasses import dataclass
+from typing import Any, Callable, ClassVar, Iterator
+
+import numpy as np
+import pytest
+
+from . import plugins
+from .errors import InputError, PlanningError, PluginError
+from .model import FREEMAN_STEPS, Contour
+from .stages import (Binarizer, ContourApproximator, ContourExtractor, DescriptorMatcher, OccupancyMapper,
+                     Planner, Stage)
+
+__all__ = [
+    "ApproximatorContract", "BinarizerContract", "CalibratedPipeline", "ExtractorContract", "MapperContract",
+    "MatcherContract", "PlannerContract", "StageContract", "TinyFloor", "calibrated_pipeline", "check_stage",
+    "make_calibrated_pipeline", "make_tiny_floor", "register_stage", "registered", "sample_outlines", "tiny_floor",
+]
+
+
+# -- the tiny floor and the calibrated pipeline -------------------------------------------------
+
+@dataclass(frozen=True, eq=False)
+class TinyFloor:
+    """A small rendered floor (see :func:`make_tiny_floor`).
+
+    Attributes
+    ----------
+    spec : sbplan.synth.FloorSpec
+    reference : ndarray of shape (H, W), uint8
+        The empty floor, every symbol visible.
+    scene : ndarray of shape (H, W), uint8
+        The same floor with obstacles.
+    truth : sbplan.synth.GroundTruth
+        ``truth.cells[row, col]``: 1 occupied, 0 free, -1 ambiguous (a sliver covered).
+    """
+
+    spec: Any
+    reference: np.ndarray
+    scene: np.ndarray
+    truth: Any
+
+    @property
+    def occupied(self) -> np.ndarray:
+        """Truly occupied cells, shape (rows, cols), bool, ``[row, col]``."""
+        return self.truth.cells == 1
+
+    @property
+    def ambiguous(self) -> np.ndarray:
+        """Cells whose symbol is covered by a sliver only: either answer is acceptable."""
+        return self.truth.cells == -1
+
+
+@functools.lru_cache(maxsize=8)
+def make_tiny_floor(*, seed: int = 3, n_obstacles: int = 2, condition: str = "clean", width: int = 320,
+                    height: int = 240, cols: int = 4, rows: int = 3, pitch: tuple[float, float] = (78.6, 77.2)) -> TinyFloor:
+    """Render a small floor and one scene on it; cached, the arrays are read-only.
+
+    Parameters
+    ----------
+    seed : int
+        Seed of the scene (obstacles, noise). The reference uses seed 0.
+    n_obstacles : int
+    condition : str
+        A name of ``sbplan.synth.CONDITIONS`` (``clean``, ``shadows``, ``highlights``, ...).
+    width, height, cols, rows : int
+        Image size in pixels and symbol grid.
+    pitch : (dx, dy)
+        Symbol spacing in pixels. Not a whole number on purpose: every symbol then falls on the
+        pixel grid differently, so the reference's symbols are not pixel-identical copies (as on
+        a real floor) and a calibration sees their true spread.
+    """
+    from .synth import FloorSpec, SceneSpec, render_reference, render_scene
+
+    spec = FloorSpec(width=width, height=height, cols=cols, rows=rows, pitch=pitch)
+    reference = render_reference(spec, seed=0)
+    scene, truth = render_scene(spec, SceneSpec(n_obstacles=n_obstacles, condition=condition), seed=seed)
+    for a in (reference, scene):
+        a.setflags(write=False)
+    return TinyFloor(spec, reference, scene, truth)
+
+
+@dataclass(frozen=True, eq=False)
+class CalibratedPipeline:
+    """A calibration of a :class:`TinyFloor` and detection on its scene."""
+
+    floor: TinyFloor
+    calibration: Any
+
+    def detect(self, image: np.ndarray | None = None, **stages: Any):
+        """Detection on ``image`` (default: the floor's scene) with stage overrides by name or instance.
+
+        A matcher or approximator other than the calibrated one gets its reference descriptor and
+        threshold derived again from the calibration's reference symbols.
+        """
+        from .detection import Detector
+
+        return Detector(self.calibration, **stages)(self.floor.scene if image is None else image)
+
+    def cell_errors(self, detection) -> int:
+        """Cells where ``detection`` disagrees with the ground truth, ambiguous cells not counted."""
+        wrong = detection.occupied != self.floor.occupied
+        return int((wrong & ~self.floor.ambiguous).sum())
+
+
+def make_calibrated_pipeline(floor: TinyFloor | None = None, **stages: Any) -> CalibratedPipeline:
+    """Calibrate on ``floor.reference`` (default: :func:`make_tiny_floor`) with optional stages."""
+    from .calibration import calibrate
+
+    floor = floor or make_tiny_floor()
+    return CalibratedPipeline(floor, calibrate(floor.reference, **stages))
+
+
+@pytest.fixture(scope="session")
+def tiny_floor() -> TinyFloor:
+    """A rendered 320 x 240 floor of 4 x 3 symbols with a scene of two obstacles and its truth."""
+    return make_tiny_floor()
+
+
+@pytest.fixture(scope="session")
+def calibrated_pipeline(tiny_floor: TinyFloor) -> CalibratedPipeline:
+    """The default pipeline calibrated on ``tiny_floor``; ``.detect(matcher=...)`` runs detection."""
+    return make_calibrated_pipeline(tiny_floor)
+
+
+@contextlib.contextmanager
+def registered(*classes: type[Stage], origin: str = "test") -> Iterator[None]:
+    """Register stage classes in the process-wide registry for the duration of a ``with`` block.
+
+    A stage already registered under the same kind and name is replaced and put back afterwards.
+    """
+    reg = plugins.registry()
+    previous = []
+    try:
+        for cls in classes:
+            try:
+                old = reg.info(cls.kind, cls.name)
+            except (PluginError, AttributeError):
+                old = None
+            reg.add(cls, origin=origin, replace=True)
+            previous.append((cls.kind, cls.name, old))
+        yield
+    finally:
+        for kind, name, old in reversed(previous):
+            reg.remove(kind, name)
+            if old is not None:
+                reg.add(old.cls, origin=old.origin, replace=True)
+
+
+@pytest.fixture
+def register_stage() -> Iterator[Callable[..., type[Stage]]]:
+    """``register_stage(cls, origin="test")``: make ``cls`` findable by name (``sbplan.plugins``,
+    ``calibrate``, ``detect``, ``plan``) until the end of the test."""
+    with contextlib.ExitStack() as stack:
+        def add(cls: type[Stage], *, origin: str = "test") -> type[Stage]:
+            stack.enter_context(registered(cls, origin=origin))
+            return cls
+
+        yield add
+
+
+# -- shapes and pictures the checks use ---------------------------------------------------------
+
+def _rotate(points: np.ndarray, degrees: float) -> np.ndarray:
+    a = np.deg2rad(degrees)
+    c, s = np.cos(a), np.sin(a)
+    return points @ np.array([[c, -s], [s, c]]).T
+
+
+def sample_outlines() -> dict[str, np.ndarray]:
+    """Closed outlines ``(x, y)`` (N, 2) float64, counter-clockwise as displayed, about 60 px big.
+
+    ``flag`` (asymmetric, the default floor symbol's shape), ``square``, ``thin-triangle``,
+    ``circle`` (64 vertices), ``ell`` (an L), ``blob`` (a smooth asymmetric outline of 90 points).
+    """
+    flag = np.array([[0, 0], [0, 1], [0.3, 1], [0.3, 0.6], [1, 0.6], [1, 0.35], [0.6, 0.35], [0.6, 0]], float)
+    t = np.linspace(0, 2 * np.pi, 64, endpoint=False)
+    u = np.linspace(0, 2 * np.pi, 90, endpoint=False)
+    r = 1 + 0.25 * np.cos(2 * u) + 0.15 * np.sin(3 * u + 0.4)
+    shapes = {
+        "flag": flag * 60,
+        "square": np.array([[0, 0], [0, 1], [1, 1], [1, 0]], float) * 60,
+        "thin-triangle": np.array([[0, 0], [30, 80], [45, 0]], float)[::-1],
+        "circle": np.c_[np.cos(t), -np.sin(t)] * 30,
+        "ell": np.array([[0, 0], [0, 1], [1, 1], [1, 0.8], [0.25, 0.8], [0.25, 0]], float) * 60,
+        "blob": np.c_[r * np.cos(u), -r * np.sin(u)] * 30,
+    }
+    return {k: _ccw(v) for k, v in shapes.items()}
+
+
+
+
+def _signed_area(p: np.ndarray) -> float:
+    """Shoelace with y down: negative = counter-clockwise as displayed."""
+    x, y = p[:, 0], p[:, 1]
+    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
+
+
+def _ccw(p: np.ndarray) -> np.ndarray:
+    return p if _signed_area(p) < 0 else p[::-1].copy()
+
+
+def _mask_with(*rects: tuple[int, int, int, int], shape=(40, 50), holes=()) -> np.ndarray:
+    """Bool mask (H, W) with filled rectangles ``(x0, y0, x1, y1)`` (inclusive) minus holes."""
+    m = np.zeros(shape, bool)
+    for x0, y0, x1, y1 in rects:
+        m[y0:y1 + 1, x0:x1 + 1] = True
+    for x0, y0, x1, y1 in holes:
+        m[y0:y1 + 1, x0:x1 + 1] = False
+    return m
+
+
+def _random_mask(seed: int, shape=(48, 64)) -> np.ndarray:
+    """Blobs with holes: smoothed noise thresholded, so regions are of a few to a few hundred pixels."""
+    import cv2
+
+    rng = np.random.default_rng(seed)
+    noise = cv2.GaussianBlur(rng.standard_normal(shape).astype(np.float32), (0, 0), 1.6)
+    return noise > 0.15
+
+
+def _rect_contour(x0: int, y0: int, x1: int, y1: int) -> Contour:
+    """The outer boundary of a filled rectangle, traversed counter-clockwise as displayed."""
+    left = [(x0, y) for y in range(y0, y1)]
+    bottom = [(x, y1) for x in range(x0, x1)]
+    right = [(x1, y) for y in range(y1, y0, -1)]
+    top = [(x, y0) for x in range(x1, x0, -1)]
+    pts = np.array(left + bottom + right + top, np.int64)
+    steps = np.roll(pts, -1, axis=0) - pts
+    chain = np.array([int(np.flatnonzero((FREEMAN_STEPS == s).all(1))[0]) for s in steps], np.uint8)
+    return Contour(pts, False, 1, chain, -1)
+
+
+# -- contract checks ------------------------------------------------------------------------------
+# Each check takes a stage instance and raises AssertionError with a message saying what broke.
+
+def check_declaration(stage: Stage) -> None:
+    """The class has a kind, a name, a one-line description, and options with help texts that
+    survive a round trip through ``config()`` and ``from_strings``."""
+    cls = type(stage)
+    assert isinstance(stage, Stage) and cls.kind in plugins.KINDS, f"{cls.__qualname__}: not a stage contract subclass"
+    assert isinstance(cls.name, str) and cls.name and cls.name == cls.name.strip(), f"{cls.__qualname__}: needs a name"
+    assert " " not in cls.name, f"{cls.kind} name {cls.name!r}: names are typed on the command line, no spaces"
+    desc = cls.description or (cls.__doc__ or "").strip()
+    assert desc and "\n" not in cls.description, f"{cls.kind} {cls.name!r}: needs a one-line description"
+    config = stage.config()
+    for opt in cls.options():
+        assert opt.help, f"{cls.kind} {cls.name!r}: option {opt.name!r} has no help text"
+    assert cls(**config).config() == config, f"{cls.kind} {cls.name!r}: cls(**config()) does not rebuild the stage"
+    simple = {k: str(v) for k, v in config.items() if isinstance(v, (bool, int, float, str))}
+    assert cls.from_strings(simple).config() == {**config}, \
+        f"{cls.kind} {cls.name!r}: from_strings(key=str(value)) does not give back the same options"
+    try:
+        cls.from_strings(["no_such_option_xyz=1"])
+    except InputError:
+        pass
+    else:  # pragma: no cover - Stage.from_strings always raises
+        raise AssertionError(f"{cls.kind} {cls.name!r}: an unknown option was accepted")
+
+
+def check_registered(stage: Stage) -> None:
+    """The stage is found by name in the process-wide registry, as the same class."""
+    info = plugins.registry().info(stage.kind, stage.name)
+    assert info.cls is type(stage), f"{stage.kind} {stage.name!r}: the registry holds {info.cls!r}"
+
+
+# binarizer
+
+def check_binarizer_output(stage: Binarizer) -> None:
+    """``binarize`` returns a bool (H, W) mask and does not modify its input."""
+    floor = make_tiny_floor()
+    gray = np.array(floor.reference)
+    out = stage.binarize(gray)
+    assert isinstance(out, np.ndarray) and out.dtype == bool and out.shape == gray.shape, \
+        f"binarizer {stage.name!r}: expected a bool array of shape {gray.shape}, got {getattr(out, 'dtype', type(out))} {getattr(out, 'shape', '')}"
+    assert np.array_equal(gray, floor.reference), f"binarizer {stage.name!r}: modified its input"
+
+
+def check_binarizer_finds_ink(stage: Binarizer) -> None:
+    """Dark printed symbols on a lighter floor are foreground, the floor is not."""
+    floor = make_tiny_floor()
+    gray = floor.reference
+    out = stage.binarize(np.array(gray))
+    ink, bare = gray < 80, gray > 160
+    assert ink.any() and bare.any()
+    assert out[ink].mean() > 0.9, f"binarizer {stage.name!r}: only {out[ink].mean():.0%} of the ink is foreground"
+    assert out[bare].mean() < 0.05, f"binarizer {stage.name!r}: {out[bare].mean():.0%} of the bare floor is foreground"
+
+
+# extractor
+
+def _closed_steps_ok(c: Contour) -> bool:
+    if len(c.points) == 1:
+        return True
+    steps = np.roll(c.points, -1, axis=0) - c.points
+    return bool((np.abs(steps).max(axis=1) == 1).all())
+
+
+def check_extractor_rectangle(stage: ContourExtractor) -> None:
+    """A filled rectangle gives one counter-clockwise outer contour of its border pixels."""
+    mask = _mask_with((5, 7, 24, 30))
+    contours = stage.extract(mask)
+    assert len(contours) == 1, f"extractor {stage.name!r}: a filled rectangle gave {len(contours)} contours"
+    c = contours[0]
+    assert isinstance(c, Contour) and not c.is_hole and c.orientation == 1, \
+        f"extractor {stage.name!r}: expected an outer contour with orientation +1"
+    pts = np.asarray(c.points)
+    assert pts.ndim == 2 and pts.shape[1] == 2 and np.issubdtype(pts.dtype, np.integer), \
+        f"extractor {stage.name!r}: points must be an integer (N, 2) array"
+    border = {(x, y) for x in range(5, 25) for y in (7, 30)} | {(x, y) for y in range(7, 31) for x in (5, 24)}
+    assert set(map(tuple, pts.tolist())) == border and len(pts) == len(border), \
+        f"extractor {stage.name!r}: the rectangle's contour is not exactly its {len(border)} border pixels"
+    assert _closed_steps_ok(c), f"extractor {stage.name!r}: the contour is not a closed 8-connected chain"
+    assert _signed_area(pts.astype(float)) < 0, f"extractor {stage.name!r}: the outer contour is not counter-clockwise as displayed"
+
+
+def check_extractor_hole(stage: ContourExtractor) -> None:
+    """A ring gives an outer contour and a clockwise hole whose parent is that outer contour."""
+    mask = _mask_with((4, 4, 30, 28), holes=[(10, 10, 20, 19)])
+    contours = stage.extract(mask)
+    outer = [i for i, c in enumerate(contours) if not c.is_hole]
+    holes = [i for i, c in enumerate(contours) if c.is_hole]
+    assert len(outer) == 1 and len(holes) == 1, \
+        f"extractor {stage.name!r}: a ring gave {len(outer)} outer contours and {len(holes)} holes"
+    h = contours[holes[0]]
+    assert h.orientation == -1, f"extractor {stage.name!r}: holes run clockwise (orientation -1)"
+    assert h.parent == outer[0], f"extractor {stage.name!r}: the hole's parent is {h.parent}, expected {outer[0]}"
+    assert _closed_steps_ok(h) and _signed_area(h.points.astype(float)) > 0, \
+        f"extractor {stage.name!r}: the hole is not a closed clockwise chain"
+
+
+def check_extractor_counts(stage: ContourExtractor, *, seeds=(1, 2, 3)) -> None:
+    """On random masks: one outer contour per 8-connected region and one hole per 4-connected
+    background region that does not touch the border; every contour closed, chains consistent."""
+    import cv2
+
+    for seed in seeds:
+        mask = _random_mask(seed)
+        n_regions = cv2.connectedComponents(mask.astype(np.uint8), connectivity=8)[0] - 1
+        n_bg, lab = cv2.connectedComponents((~mask).astype(np.uint8), connectivity=4)
+        edge = set(np.unique(np.r_[lab[0], lab[-1], lab[:, 0], lab[:, -1]]).tolist())
+        n_holes = len(set(range(1, n_bg)) - edge)
+        contours = stage.extract(mask)
+        outer = sum(not c.is_hole for c in contours)
+        holes = sum(c.is_hole for c in contours)
+        assert (outer, holes) == (n_regions, n_holes), \
+            f"extractor {stage.name!r}: mask seed {seed}: {outer} outer contours and {holes} holes, expected {n_regions} and {n_holes}"
+        for i, c in enumerate(contours):
+            assert _closed_steps_ok(c), f"extractor {stage.name!r}: mask seed {seed}: contour {i} is not closed"
+            p = np.asarray(c.points)
+            assert mask[p[:, 1], p[:, 0]].all(), \
+                f"extractor {stage.name!r}: mask seed {seed}: contour {i} runs over background pixels"
+            if len(c.chain):
+                steps = np.roll(p, -1, axis=0) - p
+                assert np.array_equal(FREEMAN_STEPS[c.chain], steps), \
+                    f"extractor {stage.name!r}: mask seed {seed}: contour {i}'s chain does not match its points"
+            assert -1 <= c.parent < len(contours), f"extractor {stage.name!r}: contour {i} has parent {c.parent}"
+
+
+def check_extractor_empty(stage: ContourExtractor) -> None:
+    """An empty mask has no contours."""
+    assert list(stage.extract(np.zeros((20, 30), bool))) == [], f"extractor {stage.name!r}: contours in an empty mask"
+
+
+# approximator
+
+def check_approximator_rectangle(stage: ContourApproximator) -> None:
+    """A rectangle's contour becomes a polygon of about its area, in the same traversal sense."""
+    c = _rect_contour(3, 4, 40, 25)
+    poly = np.asarray(stage.approximate(c))
+    assert poly.ndim == 2 and poly.shape[1] == 2 and len(poly) >= 3 and np.isfinite(poly).all(), \
+        f"approximator {stage.name!r}: expected finite (M >= 3, 2) vertices, got shape {poly.shape}"
+    area = abs(_signed_area(poly))
+    assert abs(area - 37 * 21) <= 0.1 * 37 * 21, f"approximator {stage.name!r}: area {area:.0f}, the contour's is {37 * 21}"
+    assert _signed_area(poly) < 0, f"approximator {stage.name!r}: the polygon does not keep the contour's traversal sense"
+
+
+def check_approximator_near_contour(stage: ContourApproximator, *, seeds=(1, 2)) -> None:
+    """On real contours every vertex lies within 2 px of the contour, and the area of contours
+    enclosing at least 200 px^2 is kept within 15 %."""
+    from shapely.geometry import LineString, Point
+
+    ext = plugins.extractor("opencv")
+    for seed in seeds:
+        contours = [c for c in ext.extract(_random_mask(seed)) if len(c.points) >= 20]
+        for c in contours[:12]:
+            poly = np.asarray(stage.approximate(c), float)
+            assert poly.ndim == 2 and poly.shape[1] == 2 and np.isfinite(poly).all(), \
+                f"approximator {stage.name!r}: bad output shape {poly.shape}"
+            ring = LineString(np.vstack([c.points, c.points[:1]]).astype(float))
+            far = max(ring.distance(Point(v)) for v in poly)
+            assert far <= 2.0, f"approximator {stage.name!r}: a vertex lies {far:.1f} px from the contour"
+            a0, a1 = abs(_signed_area(c.points.astype(float))), abs(_signed_area(poly))
+            if a0 >= 200:
+                assert abs(a1 - a0) <= 0.15 * a0, f"approximator {stage.name!r}: polygon area {a1:.0f} vs contour {a0:.0f}"
+
+
+# matcher
+
+def _descriptor_ok(stage: DescriptorMatcher, d: Any, k: int | None, what: str) -> int:
+    d = np.asarray(d)
+    assert d.ndim == 1 and d.dtype.kind == "f" and np.isfinite(d).all(), \
+        f"matcher {stage.name!r}: describe({what}) is not a finite 1-D float vector ({d.dtype}, {d.shape})"
+    assert k is None or len(d) == k, f"matcher {stage.name!r}: describe({what}) has {len(d)} entries, others {k}"
+    return len(d)
+
+
+def check_matcher_descriptors(stage: DescriptorMatcher) -> None:
+    """``describe`` returns a finite vector of one fixed size; ``describe_many`` agrees with it."""
+    shapes = sample_outlines()
+    k = None
+    for name, p in shapes.items():
+        k = _descriptor_ok(stage, stage.describe(p), k, name)
+    many = np.asarray(stage.describe_many(list(shapes.values())))
+    assert many.shape == (len(shapes), k), f"matcher {stage.name!r}: describe_many gave shape {many.shape}"
+    one = np.stack([stage.describe(p) for p in shapes.values()])
+    assert np.allclose(many, one, rtol=1e-9, atol=1e-12), f"matcher {stage.name!r}: describe_many differs from describe"
+    assert np.asarray(stage.describe_many([])).shape == (0, k), f"matcher {stage.name!r}: describe_many([]) is not (0, K)"
+    t = stage.default_threshold
+    assert isinstance(t, (int, float)) and np.isfinite(t) and t > 0, f"matcher {stage.name!r}: default_threshold {t!r}"
+
+
+def check_matcher_distances(stage: DescriptorMatcher) -> None:
+    """Distances are >= 0, symmetric, zero on identical descriptors; ``distance_matrix`` is (n, m)
+    and agrees with ``distance``."""
+    shapes = list(sample_outlines().values())
+    d = np.asarray(stage.describe_many(shapes))
+    mat = np.asarray(stage.distance_matrix(d, d[:3]))
+    assert mat.shape == (len(d), 3), f"matcher {stage.name!r}: distance_matrix gave shape {mat.shape}"
+    full = np.asarray(stage.distance_matrix(d, d))
+    assert np.isfinite(full).all() and (full >= 0).all(), f"matcher {stage.name!r}: negative or non-finite distances"
+    assert np.allclose(full, full.T, rtol=1e-9, atol=1e-12), f"matcher {stage.name!r}: distances are not symmetric"
+    assert np.allclose(np.diag(full), 0, atol=1e-9), f"matcher {stage.name!r}: distance to itself is not 0"
+    assert np.allclose(mat, full[:, :3], rtol=1e-9, atol=1e-12), f"matcher {stage.name!r}: distance_matrix is not consistent"
+    assert abs(stage.distance(d[0], d[1]) - full[0, 1]) <= 1e-9 * max(1.0, full[0, 1]), \
+        f"matcher {stage.name!r}: distance() differs from distance_matrix()"
+
+
+def check_matcher_invariance(stage: DescriptorMatcher) -> None:
+    """Translation, rotation, scale, start point and traversal direction move an outline (the flag,
+    the thin triangle, the blob) by less than a third of ``default_threshold``."""
+    limit = stage.default_threshold / 3
+    shapes = sample_outlines()
+    for name in ("flag", "thin-triangle", "blob"):
+        base = shapes[name]
+        variants = {
+            "translated": base + [123.0, -45.0],
+            "rotated 37 deg": _rotate(base, 37.0),
+            "rotated 90 deg": _rotate(base, 90.0),
+            "scaled x2.5": base * 2.5,
+            "start point moved": np.roll(base, 2, axis=0),
+            "reversed": base[::-1].copy(),
+        }
+        ref = stage.describe(base)
+        for what, p in variants.items():
+            dist = stage.distance(ref, stage.describe(p))
+            assert dist < limit, \
+                f"matcher {stage.name!r}: the {name} {what} is at distance {dist:.4g} (limit {limit:.4g})"
+
+
+def check_matcher_discriminates(stage: DescriptorMatcher) -> None:
+    """Clearly different shapes are farther apart than ``default_threshold``."""
+    s = sample_outlines()
+    ref = stage.describe(s["flag"])
+    for other in ("square", "thin-triangle", "circle"):
+        dist = stage.distance(ref, stage.describe(s[other]))
+        assert dist > stage.default_threshold, \
+            f"matcher {stage.name!r}: flag vs {other} at {dist:.4g}, not above default_threshold {stage.default_threshold}"
+
+
+# mapper
+
+def _grid(rows: int = 3, cols: int = 4, pitch: float = 40.0, origin=(30.0, 25.0)):
+    from .grid import fit_grid
+
+    c, r = np.meshgrid(np.arange(cols), np.arange(rows))
+    centres = np.c_[origin[0] + pitch * c.ravel(), origin[1] + pitch * r.ravel()]
+    return fit_grid(centres)
+
+
+def check_mapper(stage: OccupancyMapper) -> None:
+    """No occupied cell: all white; an occupied cell is black at its centre and nowhere near the
+    others; more occupied cells, more black; values are only 0 and 255."""
+    grid = _grid()
+    shape = (140, 190)
+    centres = grid.centres_px.reshape(-1, 2)
+    none = np.zeros(grid.shape, bool)
+    img = np.asarray(stage.occupancy_image(grid, none, shape))
+    assert img.shape == shape and img.dtype == np.uint8, f"mapper {stage.name!r}: got {img.dtype} {img.shape}"
+    assert (img == 255).all(), f"mapper {stage.name!r}: black pixels with no occupied cell"
+    one = none.copy()
+    one[1, 2] = True
+    img = np.asarray(stage.occupancy_image(grid, one, shape))
+    assert set(np.unique(img).tolist()) <= {0, 255}, f"mapper {stage.name!r}: values other than 0 and 255"
+    px = np.rint(centres).astype(int)
+    black = img[px[:, 1], px[:, 0]] == 0
+    assert black.tolist() == one.ravel().tolist(), f"mapper {stage.name!r}: black cell centres {black.reshape(grid.shape)}"
+    two = one.copy()
+    two[0, 0] = True
+    img2 = np.asarray(stage.occupancy_image(grid, two, shape))
+    assert (img2 == 0).sum() > (img == 0).sum(), f"mapper {stage.name!r}: a second occupied cell added no black"
+
+
+# planner
+
+def _planning_map(radius: float = 0.3):
+    from .planning import PlanningMap
+
+    walls = [np.array([[3, 0], [4, 0], [4, 7], [3, 7]], float), np.array([[6, 3], [7, 3], [7, 10], [6, 10]], float)]
+    return PlanningMap(walls, robot_radius=radius, bounds=(0, 0, 10, 10))
+
+
+def check_planner_route(stage: Planner, *, time_limit: float = 2.0) -> None:
+    """The route runs from start to goal, stays in bounds and keeps the robot radius from every
+    obstacle (to 1e-6 of the map's size), and is no shorter than the straight line."""
+    from shapely.geometry import LineString
+
+    from .planning.api import Problem
+
+    pmap = _planning_map()
+    start, goal = np.array([1.0, 1.0]), np.array([9.0, 1.0])
+    route = stage.solve(Problem(pmap, start, goal), time_limit=time_limit)
+    wp = np.asarray(route.waypoints, float)
+    assert wp.ndim == 2 and wp.shape[1] == 2 and len(wp) >= 2, f"planner {stage.name!r}: waypoints of shape {wp.shape}"
+    assert np.allclose(wp[0], start) and np.allclose(wp[-1], goal), f"planner {stage.name!r}: route does not join start and goal"
+    x0, y0, x1, y1 = pmap.bounds
+    assert ((wp >= [x0, y0]) & (wp <= [x1, y1])).all(), f"planner {stage.name!r}: a waypoint is out of bounds"
+    line = LineString(wp)
+    tol = 1e-6 * pmap.scale
+    for i, ob in enumerate(pmap.obstacles):
+        clearance = line.distance(ob)
+        assert clearance >= pmap.robot_radius - tol, \
+            f"planner {stage.name!r}: the route passes {clearance:.4g} from obstacle {i} (robot radius {pmap.robot_radius})"
+    assert route.length >= float(np.hypot(*(goal - start))) - 1e-9, f"planner {stage.name!r}: route shorter than the straight line"
+
+
+def check_planner_rejects_bad_start(stage: Planner, *, time_limit: float = 0.5) -> None:
+    """A start inside an obstacle raises a PlanningError (not a crash, not a route)."""
+    from .planning.api import Problem
+
+    pmap = _planning_map()
+    try:
+        stage.solve(Problem(pmap, np.array([3.5, 3.0]), np.array([9.0, 1.0])), time_limit=time_limit)
+    except PlanningError:
+        return
+    raise AssertionError(f"planner {stage.name!r}: planned from a start inside an obstacle")
+
+
+CHECKS: dict[str, tuple[Callable[[Any], None], ...]] = {
+    "binarizer": (check_binarizer_output, check_binarizer_finds_ink),
+    "extractor": (check_extractor_rectangle, check_extractor_hole, check_extractor_counts, check_extractor_empty),
+    "approximator": (check_approximator_rectangle, check_approximator_near_contour),
+    "matcher": (check_matcher_descriptors, check_matcher_distances, check_matcher_invariance, check_matcher_discriminates),
+    "mapper": (check_mapper,),
+    "planner": (check_planner_route, check_planner_rejects_bad_start),
+}
+"""kind -> the checks of its contract (besides :func:`check_declaration`)."""
+
+
+def check_stage(stage: Stage) -> None:
+    """Run the whole contract of ``stage``'s kind; raises AssertionError on the first violation."""
+    check_declaration(stage)
+    for check in CHECKS[stage.kind]:
+        check(stage)
+
+
+# -- contract suites for pytest ------------------------------------------------------------------
+
+class StageContract:
+    """Base of the contract suites. Subclass a kind's suite as ``class TestX(<Kind>Contract)``.
+
+    Set ``stage_class`` (and ``stage_options``), or ``stage_name`` to test the stage the registry
+    holds under that name (what users get through entry points), or override the ``stage`` fixture.
+    """
+
+    kind: ClassVar[str] = ""
+    stage_class: ClassVar[type[Stage] | None] = None
+    stage_options: ClassVar[dict[str, Any]] = {}
+    stage_name: ClassVar[str | None] = None
+
+    @pytest.fixture
+    def stage(self) -> Stage:
+        if self.stage_name is not None:
+            stage = plugins.registry().create(self.kind, self.stage_name, **self.stage_options)
+        elif self.stage_class is not None:
+            stage = self.stage_class(**self.stage_options)
+        else:
+            raise pytest.UsageError(f"{type(self).__name__}: set stage_class or stage_name, or override the stage fixture")
+        assert stage.kind == self.kind, f"{type(self).__name__} tests {self.kind}s, got a {stage.kind}"
+        return stage
+
+    def test_declaration(self, stage):
+        check_declaration(stage)
+
+    def test_registered(self, stage):
+        if self.stage_name is None:
+            pytest.skip("stage_class given: registration is not part of this suite (set stage_name)")
+        check_registered(stage)
+
+
+class BinarizerContract(StageContract):
+    kind = "binarizer"
+
+    def test_output(self, stage):
+        check_binarizer_output(stage)
+
+    def test_finds_ink(self, stage):
+        check_binarizer_finds_ink(stage)
+
+
+class ExtractorContract(StageContract):
+    kind = "extractor"
+
+    def test_rectangle(self, stage):
+        check_extractor_rectangle(stage)
+
+    def test_hole(self, stage):
+        check_extractor_hole(stage)
+
+    def test_region_and_hole_counts(self, stage):
+        check_extractor_counts(stage)
+
+    def test_empty(self, stage):
+        check_extractor_empty(stage)
+
+
+class ApproximatorContract(StageContract):
+    kind = "approximator"
+
+    def test_rectangle(self, stage):
+        check_approximator_rectangle(stage)
+
+    def test_near_contour(self, stage):
+        check_approximator_near_contour(stage)
+
+
+class MatcherContract(StageContract):
+    kind = "matcher"
+
+    def test_descriptors(self, stage):
+        check_matcher_descriptors(stage)
+
+    def test_distances(self, stage):
+        check_matcher_distances(stage)
+
+    def test_invariance(self, stage):
+        check_matcher_invariance(stage)
+
+    def test_discriminates(self, stage):
+        check_matcher_discriminates(stage)
+
+
+class MapperContract(StageContract):
+    kind = "mapper"
+
+    def test_occupancy_image(self, stage):
+        check_mapper(stage)
+
+
+class PlannerContract(StageContract):
+    kind = "planner"
+
+    def test_route(self, stage):
+        check_planner_route(stage)
+
+    def test_rejects_start_in_obstacle(self, stage):
+        check_planner_rejects_bad_start(stage)
