@@ -3,13 +3,10 @@ stages, and the example out-of-tree plugin works once installed, through its ent
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import os
-import shutil
 import subprocess
 import sys
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -21,7 +18,7 @@ from sbplan.errors import UnknownStageError
 from sbplan.model import Contour
 from sbplan.stages import Binarizer, ContourExtractor, DescriptorMatcher, Planner
 from sbplan.testing import (CHECKS, ApproximatorContract, BinarizerContract, ExtractorContract, MapperContract,
-                            MatcherContract, PlannerContract, calibrated_pipeline, check_stage, register_stage,
+                            MatcherContract, PlannerContract, calibrated_pipeline, check_stage, install_plugin, register_stage,
                             registered, sample_outlines, tiny_floor)  # noqa: F401  (fixtures are used by name)
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -214,49 +211,11 @@ def test_inline_stage_runs_in_the_pipeline(calibrated_pipeline, register_stage):
 
 # -- the example plugin, installed out of tree ------------------------------------------------------
 
-def _install_like_pip(target: Path) -> None:
-    """Install the plugin into ``target`` the way pip lays out a wheel: the package and a
-    ``.dist-info`` with METADATA and entry_points.txt written from the plugin's pyproject.toml.
-
-    Used when no offline build backend is available (building a wheel needs setuptools >= 70.1 or
-    the ``wheel`` package, and tests must not download anything).
-    """
-    meta = tomllib.loads((PLUGIN / "pyproject.toml").read_text())
-    project = meta["project"]
-    for package in meta["tool"]["setuptools"]["packages"]:
-        shutil.copytree(PLUGIN / package.replace(".", "/"), target / package.replace(".", "/"),
-                        ignore=shutil.ignore_patterns("__pycache__"))
-    dist = target / f"{project['name'].replace('-', '_')}-{project['version']}.dist-info"
-    dist.mkdir()
-    (dist / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {project['name']}\nVersion: {project['version']}\n")
-    lines = []
-    for group, entries in project["entry-points"].items():
-        lines.append(f"[{group}]")
-        lines += [f"{k} = {v}" for k, v in entries.items()]
-    (dist / "entry_points.txt").write_text("\n".join(lines) + "\n")
-
-
-def _can_build_offline() -> bool:
-    import setuptools
-
-    major, minor = (int(x) for x in setuptools.__version__.split(".")[:2])
-    return (major, minor) >= (70, 1) or importlib.util.find_spec("wheel") is not None
-
-
 @pytest.fixture(scope="module")
 def installed(tmp_path_factory):
-    """A folder on which the example plugin is installed, for subprocesses' PYTHONPATH.
-
-    With an offline-capable build backend this is a real ``pip install --no-deps
-    --no-build-isolation --target``; otherwise the plugin is laid out as pip would (see
-    :func:`_install_like_pip`). Either way sbplan can only find it through its entry point.
-    """
+    """A folder where the example plugin is installed, for the subprocesses' PYTHONPATH only."""
     target = tmp_path_factory.mktemp("site")
-    if _can_build_offline():
-        subprocess.run([sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--no-build-isolation",
-                        "--no-index", "--target", str(target), str(PLUGIN)], check=True, capture_output=True)
-    else:
-        _install_like_pip(target)
+    install_plugin(PLUGIN, target)
     return target
 
 
@@ -330,3 +289,23 @@ def test_plugin_own_tests_pass_when_installed(installed):
     out = _run(["-m", "pytest", "-q", "-p", "no:cacheprovider", "tests"], installed, PLUGIN)
     assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-2000:]
     assert " passed" in out.stdout
+
+
+def test_symbols_hook_adds_a_candidate_symbol():
+    from sbplan.hookspecs import hookimpl
+    from sbplan.synth import FloorSpec, render_reference
+
+    class Plugin:
+        @hookimpl
+        def sbplan_register_symbols(self, registry):
+            registry.add_symbol("test-tee", np.array([[0, 0], [1, 0], [1, 0.3], [0.65, 0.3], [0.65, 1],
+                                                      [0.35, 1], [0.35, 0.3], [0, 0.3]]), description="a T")
+
+    pm = plugins.get_plugin_manager()
+    pm.register(Plugin(), name="symbols-test")
+    reg = plugins.build_registry(pm)
+    info = reg.symbols()["test-tee"]
+    assert info.origin == "symbols-test" and info.description == "a T"
+    # the registered outline is one the renderer can print on a floor
+    ref = render_reference(FloorSpec(width=160, height=120, cols=2, rows=2, symbol=info.polygon), seed=0)
+    assert (ref < 100).any()
