@@ -27,7 +27,7 @@ class BackgroundBinarizer(Binarizer):
     description = "ink = darker than the floor estimated by a morphological closing (keeps shadow edges sharp)"
 
     window: int = option(0, "side of the closing's square in pixels; 0 = from the symbol size, else 31")
-    offset: float = option(0.2, "how much darker than the floor ink is, as a fraction of the floor's level")
+    offset: float = option(0.35, "how much darker than the floor ink is, as a fraction of the floor's level")
     min_contrast: int = option(8, "grey levels below the floor that ink must be at the least")
     downscale: int = option(2, "the closing runs on an image this many times smaller (speed)")
     opening: int = option(-1, "side of the square ink must contain (morphological opening); 0 = off, "
