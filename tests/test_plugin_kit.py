@@ -274,6 +274,30 @@ def test_installed_plugin_in_the_match_benchmark(installed, tmp_path):
     assert "elliptic-fourier" in out.stdout
 
 
+TUI_SELECTOR = """
+import asyncio, json
+from textual.widgets import OptionList, Select
+from sbplan.tui.app import SbplanApp
+
+async def main():
+    app = SbplanApp(None, auto=False)
+    async with app.run_test(size=(160, 50)) as pilot:
+        await pilot.pause()
+        options = app.screen.query_one("#stage-matcher", Select).query_one(OptionList)
+        print(json.dumps([str(options.get_option_at_index(i).prompt) for i in range(options.option_count)]))
+
+asyncio.run(main())
+"""
+
+
+def test_installed_plugin_in_the_tui_stage_selector(installed, tmp_path):
+    # The real app, headless: the calibration screen's matcher selector offers the plugin's stage.
+    out = _run(["-c", TUI_SELECTOR], installed, tmp_path)
+    assert out.returncode == 0, out.stderr[-2000:]
+    names = json.loads(out.stdout.strip().splitlines()[-1])
+    assert "elliptic-fourier" in names and "fourier" in names
+
+
 def test_unknown_matcher_without_the_plugin(calibrated_pipeline, tmp_path):
     from sbplan.imageio import write_image
 
