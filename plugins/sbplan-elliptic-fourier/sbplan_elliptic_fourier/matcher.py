@@ -23,10 +23,10 @@ def elliptic_coefficients(outlines: Sequence[np.ndarray], *, harmonics: int = 10
 
     The outline is parametrized by arc length ``t`` in ``[0, T)`` and ``x(t), y(t)`` are expanded as
     ``x(t) = A0 + sum_n a_n cos(2 pi n t / T) + b_n sin(2 pi n t / T)`` and likewise ``y(t)`` with
-    ``c_n, d_n``. For a polygon the integrals are exact sums over its edges. Every outline is first
-    oriented counter-clockwise as displayed (y down), so an outline and its reversed vertex list,
-    or an outer boundary and a hole of the same shape, get the same coefficients up to the start
-    point.
+    ``c_n, d_n``. For a polygon the integrals are exact sums over its edges. Outlines that run
+    clockwise as displayed (y down) are read backwards, which negates the sine coefficients
+    ``b_n, d_n``; so an outline and its reversed vertex list, or an outer boundary and a hole of
+    the same shape, get the same coefficients up to the start point.
 
     Parameters
     ----------
@@ -48,18 +48,7 @@ def elliptic_coefficients(outlines: Sequence[np.ndarray], *, harmonics: int = 10
     m = len(outlines)
     if m == 0:
         return np.zeros((0, harmonics, 4))
-    arrays = []
-    for i, p in enumerate(outlines):
-        a = as_points(p, name=f"outlines[{i}]")
-        x, y = a[:, 0], a[:, 1]
-        # Shoelace with y down: negative = counter-clockwise as displayed.
-        if float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y)) > 0:
-            a = a[::-1]
-        arrays.append(a)
-    counts = np.fromiter((len(a) for a in arrays), np.int64, m)
-    pts = np.concatenate(arrays)
-    starts = np.zeros(m, np.int64)
-    np.cumsum(counts[:-1], out=starts[1:])
+    pts, starts, counts = _pack(outlines)
     nxt = np.arange(1, len(pts) + 1)
     nxt[starts + counts - 1] = starts
     d = pts[nxt] - pts  # edge vectors, each outline closing onto its first point
@@ -83,9 +72,32 @@ def elliptic_coefficients(outlines: Sequence[np.ndarray], *, harmonics: int = 10
     inv = np.divide(1.0, dt, out=np.zeros_like(dt), where=dt > 0)
     vx, vy = (d[:, 0] * inv)[:, None], (d[:, 1] * inv)[:, None]
     terms = np.stack([vx * dcos, vx * dsin, vy * dcos, vy * dsin], axis=-1)  # (edges, harmonics, 4)
-    sums = np.add.reduceat(terms, starts, axis=0)
-    scale = T[:, None] / (2 * np.pi ** 2 * n[None, :] ** 2)
-    return sums * scale[:, :, None]
+    coeffs = np.add.reduceat(terms, starts, axis=0) * (T[:, None] / (2 * np.pi ** 2 * n[None, :] ** 2))[:, :, None]
+    # Shoelace with y down: positive = clockwise as displayed. Tracing an outline backwards from
+    # the same start, x(-t) = a cos - b sin: the sine coefficients change sign.
+    cross = pts[:, 0] * pts[nxt, 1] - pts[nxt, 0] * pts[:, 1]
+    clockwise = np.add.reduceat(cross, starts) > 0
+    coeffs[clockwise, :, 1] *= -1
+    coeffs[clockwise, :, 3] *= -1
+    return coeffs
+
+
+def _pack(outlines: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """All outlines in one (sum N_i, 2) array, with each one's start index and length."""
+    try:
+        arrays = [np.asarray(p, dtype=np.float64) for p in outlines]
+        ok = all(a.ndim == 2 and a.shape[1] == 2 and len(a) >= 3 for a in arrays)
+        pts = np.concatenate(arrays) if ok else None
+        ok = ok and bool(np.isfinite(pts).all())
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:  # validate one by one: names the first bad outline, accepts OpenCV's (N, 1, 2)
+        arrays = [as_points(p, name=f"outlines[{i}]") for i, p in enumerate(outlines)]
+        pts = np.concatenate(arrays)
+    counts = np.fromiter((len(a) for a in arrays), np.int64, len(arrays))
+    starts = np.zeros(len(arrays), np.int64)
+    np.cumsum(counts[:-1], out=starts[1:])
+    return pts, starts, counts
 
 
 def normalize_coefficients(coeffs: np.ndarray) -> np.ndarray:
