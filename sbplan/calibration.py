@@ -50,6 +50,8 @@ class Calibration:
         The approximated outline of every cell's symbol in the reference, row-major.
     other_polygons : list of ndarray (K, 2)
         A sample of the reference's contours that are not symbols (for re-deriving thresholds).
+    degraded_polygons : list of ndarray (K, 2)
+        A sample of the symbols as found in degraded copies of the reference (likewise).
     descriptor : ndarray (K,)
         The reference symbol's descriptor under ``stages["matcher"]``.
     threshold : float
@@ -70,6 +72,7 @@ class Calibration:
     grid: Grid
     symbol_polygons: list[np.ndarray]
     other_polygons: list[np.ndarray]
+    degraded_polygons: list[np.ndarray]
     descriptor: np.ndarray
     threshold: float
     margin: float
@@ -119,6 +122,7 @@ class Calibration:
                 "polygons": [np.round(p, 3).tolist() for p in self.symbol_polygons],
             },
             "other_polygons": [np.round(p, 3).tolist() for p in self.other_polygons],
+            "degraded_polygons": [np.round(p, 3).tolist() for p in self.degraded_polygons],
             "workspace": self.workspace.to_json(),
             "stats": self.stats,
         }
@@ -138,7 +142,8 @@ class Calibration:
                 stages={k: dict(v) for k, v in data["stages"].items()},
                 grid=Grid.from_json(data["grid"]),
                 symbol_polygons=[np.asarray(p, np.float64) for p in sym["polygons"]],
-                other_polygons=[np.asarray(p, np.float64) for p in data.get("other_polygons", [])],
+                other_polygons=[np.asarray(p, np.float64) for p in data["other_polygons"]],
+                degraded_polygons=[np.asarray(p, np.float64) for p in data["degraded_polygons"]],
                 descriptor=np.asarray(sym["descriptor"], np.float64),
                 threshold=float(sym["threshold"]),
                 margin=float(sym["margin"]),
@@ -286,7 +291,7 @@ def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str 
     cell_area[cells[:, 0], cells[:, 1]] = shapes.areas[members]
     symbol_polygons = [shapes.polygons[i] for i in members[np.argsort(cells[:, 0] * grid.cols + cells[:, 1])]]
     distance_map = signed_distance_map(symbol_polygons, gray.shape)
-    degraded, deviations = _degraded_symbols(gray, grid, reference_descriptor, cell_area, distance_map,
+    degraded, deviations, degraded_polygons = _degraded_symbols(gray, grid, reference_descriptor, cell_area, distance_map,
                                              binarizer=chosen["binarizer"], points_range=points_range, **kw)
     # An obstacle that clips a symbol moves part of its outline by more than light and focus
     # move it; the tolerance sits outside what the degraded copies showed, and at least 1 px.
@@ -299,6 +304,7 @@ def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str 
     others = np.setdiff1d(np.arange(len(shapes.polygons)), members)
     rng = np.random.default_rng(0)  # the sample of other contours is kept small and reproducible
     sample = rng.choice(others, size=min(len(others), 200), replace=False) if len(others) else others
+    keep_degraded = rng.choice(len(degraded_polygons), size=min(len(degraded_polygons), 300), replace=False)
     n_points = shapes.points[symbol_idx]
     stats = {
         "contours": shapes.n_contours,
@@ -314,6 +320,7 @@ def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str 
         grid=grid,
         symbol_polygons=[shapes.polygons[i] for i in symbol_idx],
         other_polygons=[shapes.polygons[i] for i in sample],
+        degraded_polygons=[degraded_polygons[i] for i in sorted(keep_degraded)],
         descriptor=reference_descriptor,
         threshold=threshold,
         margin=margin,
@@ -367,8 +374,8 @@ def _degraded_symbols(gray: np.ndarray, grid: Grid, descriptor: np.ndarray, cell
                       binarizer, extractor, approximator, matcher, points_range) -> tuple[np.ndarray, np.ndarray]:
     """The reference's symbols in defocused, dimmed, dark-and-grainy and noisy copies of it.
 
-    Returns their descriptor distances to ``descriptor`` and their outlines' deviations from the
-    reference outlines (:func:`sbplan.outline_check.outline_deviation`).
+    Returns their descriptor distances to ``descriptor``, their outlines' deviations from the
+    reference outlines (:func:`sbplan.outline_check.outline_deviation`) and their polygons.
     """
     import cv2
 
@@ -380,7 +387,7 @@ def _degraded_symbols(gray: np.ndarray, grid: Grid, descriptor: np.ndarray, cell
         np.clip(0.3 * g + rng.normal(0, 4, g.shape), 0, 255).astype(np.uint8),
         np.clip(g + rng.normal(0, 8, g.shape), 0, 255).astype(np.uint8),
     ]
-    distances, deviations = [], []
+    distances, deviations, polygons = [], [], []
     for image in copies:
         shapes = extract_shapes(image, binarizer=binarizer, extractor=extractor, approximator=approximator,
                                 matcher=matcher, points_range=points_range)
@@ -391,6 +398,8 @@ def _degraded_symbols(gray: np.ndarray, grid: Grid, descriptor: np.ndarray, cell
         ratio = np.full(len(cells), np.inf)
         ratio[ok] = shapes.areas[ok] / cell_area[cells[ok, 0], cells[ok, 1]]
         ok &= np.abs(np.log(ratio)) < np.log(1.3)
+        if not ok.any():  # this degradation erased every symbol: it says nothing about them
+            continue
         d = matcher.distance_matrix(shapes.descriptors[ok], descriptor[None, :])[:, 0]
         # one shape per cell: the best match (a cell may also hold the odd noise blob)
         flat = cells[ok, 0] * grid.cols + cells[ok, 1]
@@ -399,9 +408,10 @@ def _degraded_symbols(gray: np.ndarray, grid: Grid, descriptor: np.ndarray, cell
         distances.append(d[first])
         kept = np.flatnonzero(ok)[first]
         deviations.append(outline_deviation([shapes.polygons[i] for i in kept], distance_map))
+        polygons.extend(shapes.polygons[i] for i in kept)
     if not distances:
-        return np.zeros(0), np.zeros(0)
-    return np.concatenate(distances), np.concatenate(deviations)
+        return np.zeros(0), np.zeros(0), []
+    return np.concatenate(distances), np.concatenate(deviations), polygons
 
 
 def _symbol_members(shapes: Shapes, matcher, *, symbol: Any, chosen: dict) -> np.ndarray:

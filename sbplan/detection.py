@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from .calibration import Calibration, derive_threshold, load_calibration
+from .calibration import Calibration, confuser_distances, derive_threshold, load_calibration
 from .errors import DetectionError
 from .geometry import centroids, signed_areas
 from .imageio import as_gray, load_image
@@ -112,9 +112,14 @@ class Detector:
         else:
             sym = self.matcher.describe_many(cal.symbol_polygons)
             self.descriptor = np.median(sym, axis=0)
-            d_sym = self.matcher.distance_matrix(sym, self.descriptor[None, :])[:, 0]
-            other = self.matcher.describe_many(cal.other_polygons) if cal.other_polygons else sym[:0]
-            d_other = self.matcher.distance_matrix(other, self.descriptor[None, :])[:, 0] if len(other) else np.zeros(0)
+            # the symbols as later images show them: the reference's and its degraded copies'
+            seen = self.matcher.describe_many(cal.symbol_polygons + cal.degraded_polygons)
+            d_sym = self.matcher.distance_matrix(seen, self.descriptor[None, :])[:, 0]
+            area = float(np.median(np.abs(signed_areas(cal.symbol_polygons))))
+            d_other = confuser_distances(self.matcher, self.descriptor, area)
+            if cal.other_polygons:
+                other = self.matcher.describe_many(cal.other_polygons)
+                d_other = np.concatenate([d_other, self.matcher.distance_matrix(other, self.descriptor[None, :])[:, 0]])
             self.threshold, _ = derive_threshold(d_sym, d_other)
         areas = np.abs(signed_areas(cal.symbol_polygons))
         self.cell_area = areas.reshape(cal.grid.rows, cal.grid.cols)
