@@ -1,0 +1,104 @@
+"""The fixed ceiling camera: perspective tilt and radial lens distortion.
+
+The floor plane is measured in pixels so that an untilted, undistorted camera shows it 1:1. A tilt
+is a rotation of the camera about its centre (focal length = image width), composed with a shift
+that keeps the floor's centre at the image centre. Distortion is radial about the image centre on
+coordinates normalized by the half diagonal: an image point ``d`` shows the ideal point
+``d * (1 + k1 |d|^2)`` (k1 > 0: barrel).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+
+import cv2
+import numpy as np
+
+
+@functools.lru_cache(maxsize=16)
+def _homography(width: int, height: int, tilt: tuple[float, float]) -> np.ndarray:
+    f = float(width)
+    cx, cy = (width - 1) / 2.0, (height - 1) / 2.0
+    k = np.array([[f, 0, cx], [0, f, cy], [0, 0, 1.0]])
+    ax, ay = (math.radians(t) for t in tilt)
+    rx = np.array([[1, 0, 0], [0, math.cos(ax), -math.sin(ax)], [0, math.sin(ax), math.cos(ax)]])
+    ry = np.array([[math.cos(ay), 0, math.sin(ay)], [0, 1, 0], [-math.sin(ay), 0, math.cos(ay)]])
+    h = k @ rx @ ry @ np.linalg.inv(k)
+    c = h @ np.array([cx, cy, 1.0])
+    shift = np.array([[1, 0, cx - c[0] / c[2]], [0, 1, cy - c[1] / c[2]], [0, 0, 1.0]])
+    h = shift @ h
+    return h / h[2, 2]
+
+
+class Camera:
+    """Maps floor-plane pixels to image pixels and back.
+
+    Parameters
+    ----------
+    width, height : int
+        Image size.
+    tilt : (float, float)
+        Degrees about the x and y axes.
+    distortion : float
+        Radial k1 (see module doc).
+    """
+
+    def __init__(self, width: int, height: int, tilt=(0.0, 0.0), distortion: float = 0.0):
+        self.width, self.height = int(width), int(height)
+        self.tilt = (float(tilt[0]), float(tilt[1]))
+        self.distortion = float(distortion)
+        self.h = _homography(self.width, self.height, self.tilt)
+        self.h_inv = np.linalg.inv(self.h)
+        self.centre = np.array([(self.width - 1) / 2.0, (self.height - 1) / 2.0])
+        self.radius = 0.5 * math.hypot(self.width, self.height)
+
+    @property
+    def identity(self) -> bool:
+        return self.tilt == (0.0, 0.0) and self.distortion == 0.0
+
+    def floor_to_image(self, pts: np.ndarray) -> np.ndarray:
+        """Image points ``(..., 2)`` ``(x, y)`` of floor points ``(..., 2)``."""
+        pts = np.asarray(pts, dtype=np.float64)
+        if self.identity:
+            return pts.copy()
+        q = pts @ self.h[:2, :2].T + self.h[:2, 2]
+        w = pts @ self.h[2, :2] + self.h[2, 2]
+        u = (q / w[..., None] - self.centre) / self.radius
+        if self.distortion:
+            # invert u = d (1 + k |d|^2) by fixed-point iteration (converges fast for |k| <= 0.3)
+            d = u.copy()
+            for _ in range(30):
+                d = u / (1.0 + self.distortion * np.sum(d * d, axis=-1, keepdims=True))
+            u = d
+        return u * self.radius + self.centre
+
+    def image_to_floor(self, pts: np.ndarray) -> np.ndarray:
+        """Floor points of image points ``(..., 2)`` ``(x, y)``."""
+        pts = np.asarray(pts, dtype=np.float64)
+        if self.identity:
+            return pts.copy()
+        d = (pts - self.centre) / self.radius
+        u = d * (1.0 + self.distortion * np.sum(d * d, axis=-1, keepdims=True))
+        p = u * self.radius + self.centre
+        q = p @ self.h_inv[:2, :2].T + self.h_inv[:2, 2]
+        w = p @ self.h_inv[2, :2] + self.h_inv[2, 2]
+        return q / w[..., None]
+
+    def warp(self, floor_image: np.ndarray) -> np.ndarray:
+        """The camera's view of a floor-plane image of the same size (bilinear)."""
+        if self.identity:
+            return floor_image
+        mx, my = _maps(self.width, self.height, self.tilt, self.distortion)
+        return cv2.remap(floor_image, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT)
+
+
+@functools.lru_cache(maxsize=8)
+def _maps(width: int, height: int, tilt: tuple[float, float], distortion: float):
+    cam = Camera(width, height, tilt, distortion)
+    ys, xs = np.mgrid[0:height, 0:width].astype(np.float64)
+    f = cam.image_to_floor(np.stack([xs, ys], axis=-1))
+    mx, my = f[..., 0].astype(np.float32), f[..., 1].astype(np.float32)
+    mx.setflags(write=False)
+    my.setflags(write=False)
+    return mx, my

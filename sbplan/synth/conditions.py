@@ -1,0 +1,122 @@
+"""The named adverse conditions a scene is seen under, and the effects they set."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any
+
+from ..errors import SceneError
+
+
+@dataclass(frozen=True)
+class Effects:
+    """Lighting and camera effects of one image.
+
+    Lighting is applied to the floor's reflectance: ``level = reflectance * illumination * gain +
+    offset``, then additive highlights; then the camera: geometry (tilt, distortion), Gaussian blur,
+    signal-dependent sensor noise, 8-bit quantization and optionally JPEG.
+
+    Attributes
+    ----------
+    gain, offset : float
+        Global exposure: multiplier and added grey levels.
+    gradient : float
+        Illumination ramp across the image: from ``1 - gradient`` to ``1 + gradient`` along a
+        direction drawn from the seed.
+    shadows : float
+        Darkening (fraction, 0..0.8) of the soft shadows obstacles cast on the floor beside them.
+    highlights : int
+        Number of bright elliptic blobs (lighting errors / glare; they make round contours).
+    highlight_strength : float
+        Peak added grey level of a highlight, at most 110 so that dark ink under a highlight stays
+        clearly darker than the floor around it (symbols stay recognizable, cells stay honest).
+    noise : float
+        Sensor noise standard deviation in grey levels at mid-grey (shot-noise-like: grows with
+        the signal).
+    blur : float
+        Gaussian blur sigma in pixels (optics, focus).
+    jpeg : int
+        JPEG quality 1..100, or 0 for no compression.
+    tilt : (float, float) or None
+        Camera tilt in degrees about (x, y) axes, overriding the floor's. Geometry is a property of
+        the fixed camera: render the reference with the same condition.
+    distortion : float or None
+        Radial distortion k1 overriding the floor's (same remark).
+    texture_contrast : float
+        Multiplier of the obstacles' texture amplitude (the "textured" condition raises it).
+    """
+
+    gain: float = 1.0
+    offset: float = 0.0
+    gradient: float = 0.0
+    shadows: float = 0.0
+    highlights: int = 0
+    highlight_strength: float = 80.0
+    noise: float = 1.5
+    blur: float = 0.7
+    jpeg: int = 0
+    tilt: Any = None
+    distortion: Any = None
+    texture_contrast: float = 1.0
+
+    def __post_init__(self) -> None:
+        checks = {
+            "gain": (0.05, 3.0), "offset": (-100.0, 100.0), "gradient": (0.0, 0.8), "shadows": (0.0, 0.8),
+            "highlights": (0, 50), "highlight_strength": (0.0, 110.0), "noise": (0.0, 40.0),
+            "blur": (0.0, 8.0), "jpeg": (0, 100), "texture_contrast": (0.0, 5.0),
+        }
+        for name, (lo, hi) in checks.items():
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not (lo <= v <= hi):
+                raise SceneError(f"effects.{name}: must be a number in [{lo}, {hi}], got {v!r}")
+        if self.tilt is not None:
+            try:
+                a, b = (float(x) for x in self.tilt)
+            except (TypeError, ValueError):
+                raise SceneError(f"effects.tilt: expected (about_x, about_y) degrees, got {self.tilt!r}") from None
+            if max(abs(a), abs(b)) > 15:
+                raise SceneError(f"effects.tilt: at most 15 degrees, got {self.tilt!r}")
+            object.__setattr__(self, "tilt", (a, b))
+        if self.distortion is not None and not (-0.3 <= float(self.distortion) <= 0.3):
+            raise SceneError(f"effects.distortion: must lie in [-0.3, 0.3], got {self.distortion!r}")
+
+    def to_dict(self) -> dict[str, Any]:
+        d = dataclasses.asdict(self)
+        if d["tilt"] is not None:
+            d["tilt"] = list(d["tilt"])
+        return d
+
+
+#: Condition name -> (description, effects that differ from the base camera and lighting).
+_TABLE: dict[str, tuple[str, dict[str, Any]]] = {
+    "clean": ("base lighting and camera: slight blur (0.7 px), mild sensor noise (1.5 levels)", {}),
+    "bright": ("global gain +40 % (the floor saturates)", {"gain": 1.4}),
+    "dark": ("global gain -40 %", {"gain": 0.6}),
+    "gradient": ("illumination ramp from 0.65 to 1.35 across the image", {"gradient": 0.35}),
+    "shadows": ("soft shadows cast beside every obstacle, darkening the floor by 50 %", {"shadows": 0.5}),
+    "highlights": ("three bright elliptic glare blobs (+90 levels) partly washing out symbols",
+                   {"highlights": 3, "highlight_strength": 90.0}),
+    "noise": ("strong sensor noise (sigma 8 levels)", {"noise": 8.0}),
+    "blur": ("defocus blur, sigma 1.8 px", {"blur": 1.8}),
+    "jpeg": ("JPEG compression at quality 30", {"jpeg": 30}),
+    "tilt": ("camera tilted 3 deg about x and 2 deg about y (perspective); reference shares it",
+             {"tilt": (3.0, 2.0)}),
+    "distortion": ("barrel lens distortion k1 = 0.06; reference shares it", {"distortion": 0.06}),
+    "low-light": ("gain 0.25 with stronger noise (sigma 4): a dim, grainy image",
+                  {"gain": 0.25, "offset": 3.0, "noise": 4.0}),
+    "textured": ("obstacles with 2.5x stronger textures (stripes, labels, mottling)", {"texture_contrast": 2.5}),
+    "adverse": ("gradient, shadows, two highlights, noise 4 and JPEG 60 together",
+                {"gradient": 0.25, "shadows": 0.4, "highlights": 2, "highlight_strength": 80.0, "noise": 4.0,
+                 "jpeg": 60}),
+}
+
+#: The named condition suite: name -> one-line description.
+CONDITIONS: dict[str, str] = {name: desc for name, (desc, _) in _TABLE.items()}
+
+
+def condition_effects(name: str) -> Effects:
+    """The :class:`Effects` of a named condition."""
+    if name not in _TABLE:
+        raise SceneError(f"condition: unknown condition {name!r}; known: {', '.join(CONDITIONS)}")
+    return Effects(**_TABLE[name][1])
