@@ -49,8 +49,10 @@ def overlay_image(image: np.ndarray, detection: Detection) -> np.ndarray:
         cv2.putText(out, label, org, font, fs, _WHITE, th, cv2.LINE_AA)
     text = (f"{detection.symbols_found}/{detection.symbols_expected} symbols, "
             f"{len(detection.occupied_cells)} occupied cells, {len(detection.obstacles)} obstacles")
-    cv2.putText(out, text, (8, 20 * scale), cv2.FONT_HERSHEY_SIMPLEX, 0.55 * scale, _BLACK, 4 * scale, cv2.LINE_AA)
-    cv2.putText(out, text, (8, 20 * scale), cv2.FONT_HERSHEY_SIMPLEX, 0.55 * scale, _WHITE, scale, cv2.LINE_AA)
+    (tw, th), base = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, 0.55 * scale, scale)
+    banner = out[: th + base + 10 * scale, : tw + 16 * scale]
+    banner[:] = (banner * 0.35).astype(np.uint8)  # a dark band keeps the text legible on any floor
+    cv2.putText(out, text, (8 * scale, th + 5 * scale), cv2.FONT_HERSHEY_SIMPLEX, 0.55 * scale, _WHITE, scale, cv2.LINE_AA)
     return out
 
 
