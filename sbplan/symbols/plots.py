@@ -191,7 +191,7 @@ def margin_figure(names, margin, order, min_margin, recommended=None) -> np.ndar
     """Confusion margin per symbol in ranking order, with the minimum a recommendation needs."""
     n = len(names)
     W = max(900, 120 + 26 * n)
-    img = np.full((560, W, 3), 255, np.uint8)
+    img = np.full((470, W, 3), 255, np.uint8)
     labels = [names[i] for i in order]
     mark = [names[i] == recommended for i in order]
     _text(img, "Confusion margin: nearest noise contour / own spread under rendering changes", (W // 2, 28), 0.6,
