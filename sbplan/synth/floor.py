@@ -23,8 +23,9 @@ DEFAULT_SYMBOL = "flag"
 #: Obstacle kinds and obstacle textures the renderer knows.
 OBSTACLE_KINDS = ("box", "cylinder", "blob")
 TEXTURES = ("noise", "stripes", "gradient", "labels")
-#: Printed patterns ("layouts") at the grid points. A later ArUco layout is one more entry.
-LAYOUTS = ("symbols",)
+#: Printed patterns ("layouts") at the grid points: the symbol, or one ArUco marker per cell
+#: (:mod:`sbplan.synth.aruco`, for comparing with a marker grid on the same scenes).
+LAYOUTS = ("symbols", "aruco")
 
 
 def symbol_outline(symbol: str | Any) -> list[np.ndarray]:
@@ -167,7 +168,8 @@ class FloorSpec:
     texture : float
         Amplitude (grey levels) of the floor's own texture (concrete-like mottling plus grain).
     layout : str
-        The printed pattern at the grid points (``"symbols"``).
+        The printed pattern at the grid points: ``"symbols"``, or ``"aruco"`` (one ArUco marker of
+        side ``symbol_size`` per cell, id ``row * cols + col``; see :mod:`sbplan.synth.aruco`).
     tilt : (about_x, about_y) degrees
         Camera tilt from looking straight down (perspective). Same for reference and scenes.
     distortion : float
@@ -228,6 +230,9 @@ class FloorSpec:
         dy = float(np.min(np.diff(ys))) if len(ys) > 1 else float(self.height)
         if dx <= 0 or dy <= 0:
             raise SceneError("col_x/row_y: centres must increase strictly")
+        if self.symbol_size is None and 0.45 * min(dx, dy) < 6:
+            raise SceneError(f"cols/rows: the {self.cols} x {self.rows} grid does not fit a {self.width} x "
+                             f"{self.height} image (pitch {dx:.3g} x {dy:.3g} px leaves symbols under 6 px)")
         size = 0.45 * min(dx, dy) if self.symbol_size is None else self.symbol_size
         s("symbol_size", _num("symbol_size", size, low=0, low_open=True))
         if self.symbol_size < 6:
