@@ -15,7 +15,7 @@ Families (all shapes are ``[outline, *holes]`` polygons in a unit box, y down, l
     Ellipses with axis ratios from 1.1 to 4, the circles seen obliquely or stretched highlights.
 ``occluded``
     Partly hidden copies of the candidate itself: the candidate minus a random rectangle or
-    half-plane that hides 10 % to 45 % of its area (what an obstacle's edge leaves visible). Only
+    half-plane that hides about 10 % to 45 % of its area (8-50 % accepted) (what an obstacle's edge leaves visible). Only
     drawn when a candidate is given.
 ``edges``
     Obstacle-edge fragments: pieces of dark boxes cut by the image of a lighter floor, i.e. box

@@ -25,11 +25,12 @@ element-wise median over those renderings (as calibration does with the referenc
 sbplan adds two measured scores:
 
 - **Regularity** (condition 3): the share of the outline's length (all rings) that lies in
-  straight pieces. Measured on a large rendering (400 px, at 0 and 17 degrees): the pixel contour is
-  approximated by Douglas-Peucker with a tight 0.75 px tolerance, and an edge of that polygon
-  counts as straight when it is at least 12 % of the symbol's size long. A circle of 400 px is
-  then cut into chords of about 35 px (9 %), so round outlines score near 0, while an outline of
-  long straight sides scores near 1.
+  straight pieces. Measured on a large rasterization (600 px, at 0 and 17 degrees): the pixel
+  contour is approximated by Douglas-Peucker with a 1.2 px tolerance (a digitized straight edge
+  stays within about 1 px of its chord), and an edge of that polygon counts as straight when it is
+  at least 15 % of the symbol's size long. A circle of 600 px is then cut into chords of about
+  54 px (9 %) and the flattest part of a 2:1 ellipse into chords of 13 %, so round outlines score
+  0, while an outline of long straight sides scores near 1.
 - **Confusion margin**: the distance from the candidate's descriptor to the nearest shape of the
   noise set (:mod:`sbplan.symbols.noise`, rendered the same way) divided by the candidate's own
   *spread*, the largest distance of one of its renderings from its descriptor. Below 1 a noise
@@ -474,7 +475,7 @@ def rank_symbols(candidates: Sequence[str] | Mapping[str, Any] | None = None, *,
         "min_regularity": float(min_regularity), "min_margin": float(min_margin), "seed": int(seed),
         "mean_includes_diagonal": True, "variance": "sample variance of row i about its own mean (ddof=1)",
         "spread": "max distance of a rendering from the candidate's median descriptor",
-        "regularity": "share of outline length in Douglas-Peucker edges (0.75 px) >= 12% of the size, at 400 px",
+        "regularity": "share of outline length in Douglas-Peucker edges (1.2 px) >= 15% of the size, at 600 px",
     }
     return Ranking(names, descriptors, dist, mean, var, score, order, regular, spread, noise_d, nearest, margin,
                    best, settings, time.perf_counter() - t0)
