@@ -3,13 +3,15 @@ pixels into :class:`sbplan.model.Contour` objects."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import cv2
 import numpy as np
 
-from sbplan.errors import ImageError
+from sbplan.errors import ImageError, InputError
 from sbplan.model import FREEMAN_STEPS, Contour
+from sbplan.stages import ContourExtractor, option
 
 # Freeman code of a step (dx, dy), indexed by (dx + 1) * 3 + (dy + 1); 255 marks "not a step".
 _STEP_CODE = np.full(9, 255, np.uint8)
@@ -99,3 +101,14 @@ def build_contours(points: np.ndarray, lengths: np.ndarray, is_hole: np.ndarray,
                 for s, e, h, p in zip(s_list, e_list, holes, parents)]
     return [Contour(points[s:e], is_hole=h, orientation=-1 if h else 1, chain=empty, parent=p)
             for s, e, h, p in zip(s_list, e_list, holes, parents)]
+
+
+@dataclass(kw_only=True, frozen=True)
+class BoundaryExtractor(ContourExtractor):
+    """Options both extractors take; a base class, not a stage of its own (it has no name)."""
+
+    chains: bool = option(True, "compute Freeman chain codes (False leaves every chain empty)")
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.chains, (bool, np.bool_)):
+            raise InputError(f"option chains: expected True or False, got {self.chains!r}")

@@ -51,9 +51,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from sbplan.model import Contour
-from sbplan.stages import ContourExtractor, option
 
-from ._common import as_mask, build_contours
+from ._common import BoundaryExtractor, as_mask, build_contours
 
 # Crack directions (as displayed): up, right, down, left.
 _N, _E, _S, _W = 0, 1, 2, 3
@@ -84,18 +83,12 @@ _NOUT, _OUT, _NEXT = _tables()
 
 
 @dataclass(kw_only=True, frozen=True)
-class OkeExtractor(ContourExtractor):
+class OkeExtractor(BoundaryExtractor):
     """The paper's extractor: 2x2 windows, basic contour elements, sorted into closed contours."""
 
     name = "oke"
     description = "paper's OKE: 2x2 window patterns -> crack elements -> sorted closed contours (numpy)"
 
-    chains: bool = option(True, "compute Freeman chain codes (False leaves every chain empty)")
-
-    def __post_init__(self) -> None:
-        from sbplan.errors import InputError
-        if not isinstance(self.chains, (bool, np.bool_)):
-            raise InputError(f"option chains: expected True or False, got {self.chains!r}")
 
     def extract(self, binary: np.ndarray) -> list[Contour]:
         """Return every outer boundary and hole boundary of ``binary``.

@@ -17,24 +17,17 @@ import cv2
 import numpy as np
 
 from sbplan.model import Contour
-from sbplan.stages import ContourExtractor, option
 
-from ._common import as_mask, build_contours
+from ._common import BoundaryExtractor, as_mask, build_contours
 
 
 @dataclass(kw_only=True, frozen=True)
-class OpenCVExtractor(ContourExtractor):
+class OpenCVExtractor(BoundaryExtractor):
     """Contours by OpenCV's border following."""
 
     name = "opencv"
     description = "OpenCV border following (findContours, RETR_TREE, CHAIN_APPROX_NONE)"
 
-    chains: bool = option(True, "compute Freeman chain codes (False leaves every chain empty)")
-
-    def __post_init__(self) -> None:
-        from sbplan.errors import InputError
-        if not isinstance(self.chains, (bool, np.bool_)):
-            raise InputError(f"option chains: expected True or False, got {self.chains!r}")
 
     def extract(self, binary: np.ndarray) -> list[Contour]:
         """Return every outer boundary and hole boundary of ``binary``.
