@@ -38,7 +38,7 @@ class Obstacle:
         long_edge = e1 if l1 >= l2 else e2
         angle = float(np.degrees(np.arctan2(long_edge[1], long_edge[0])))
         angle = (angle + 90.0) % 180.0 - 90.0  # in [-90, 90): the long side's direction
-        return max(l1, l2), min(l1, l2), angle
+        return max(l1, l2), min(l1, l2), round(angle, 3) + 0.0  # + 0.0: no "-0.0" in reports
 
     def to_json(self) -> dict:
         length, width, angle = self._size_angle(self.mar_px)
