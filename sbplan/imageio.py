@@ -91,6 +91,9 @@ def write_atomic(path: str | os.PathLike, write: Callable[[Any], None] | bytes |
     folder.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=folder)
     try:
+        # mkstemp makes the file private (0600); a result file should be as readable as any other
+        # (a replaced file keeps its mode)
+        os.chmod(tmp, p.stat().st_mode & 0o7777 if p.exists() else 0o644)
         mode = "wb" if binary and not isinstance(write, str) else "w"
         with os.fdopen(fd, mode, **({} if "b" in mode else {"encoding": "utf-8"})) as fh:
             if callable(write):

@@ -59,3 +59,13 @@ def test_atomic_write_keeps_the_old_file_when_writing_fails(tmp_path):
         write_atomic(target, explode)
     assert target.read_text() == '{\n  "good": 1\n}\n'
     assert [p.name for p in tmp_path.iterdir()] == ["calibration.json"], "no temporary file is left behind"
+
+
+def test_written_files_are_readable_like_any_other(tmp_path):
+    import stat
+
+    path = write_json(tmp_path / "result.json", {"a": 1})
+    assert stat.S_IMODE(path.stat().st_mode) == 0o644
+    path.chmod(0o600)
+    write_json(path, {"a": 2})
+    assert stat.S_IMODE(path.stat().st_mode) == 0o600, "a replaced file keeps its mode"
