@@ -352,7 +352,8 @@ class SceneSpec:
         A cell is occupied when more than this fraction of its symbol's area is covered.
     near_px : float
         A symbol with no overlap but within this distance of an obstacle is ambiguous (its
-        antialiased edge pixels are shared with the obstacle's).
+        antialiased edge pixels are shared with the obstacle's). The default 1.5 exceeds a pixel's
+        diagonal, so a free symbol never shares a pixel with an obstacle.
     min_gap : float
         Minimum gap between random obstacles in pixels (best effort).
     """
@@ -365,7 +366,7 @@ class SceneSpec:
     condition: str = "clean"
     effects: Any = field(default_factory=dict)
     occupied_fraction: float = 0.02
-    near_px: float = 1.0
+    near_px: float = 1.5
     min_gap: float = 10.0
 
     def __post_init__(self) -> None:

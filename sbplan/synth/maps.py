@@ -87,7 +87,7 @@ def _paper() -> MapRecipe:
     bench = np.array([(316, 484), (360, 474), (560, 476), (590, 492), (586, 544), (330, 546)], float)  # cols 3-5, row 5
     scene = SceneSpec(obstacles=[shelf, drum, bench], textures=("noise", "stripes", "labels"))
     return MapRecipe("paper-8x6", "the paper's worked example (figure 6): 8 x 6 symbols, 3 obstacles hide 13",
-                     floor, ((scene, 1),), start_m=(0.25, 1.75), goal_m=(3.75, 1.75))
+                     floor, ((scene, 1),))
 
 
 def _large() -> MapRecipe:
