@@ -83,11 +83,11 @@ def _paper() -> MapRecipe:
     # >= 10 px from every other symbol, so their occupied cells form three groups that do not touch
     # (not even diagonally): 6 + 4 + 3 = 13 hidden symbols, 35 visible.
     shelf = _rotated_box(203, 234.5, 170, 253, 3.0)            # cols 1-2, rows 1-3
-    drum = _disc(600, 188, 106)                                  # cols 5-6, rows 1-2
+    drum = _disc(600, 188, 100)                                  # cols 5-6, rows 1-2
     bench = np.array([(316, 484), (360, 474), (560, 476), (590, 492), (586, 544), (330, 546)], float)  # cols 3-5, row 5
     scene = SceneSpec(obstacles=[shelf, drum, bench], textures=("noise", "stripes", "labels"))
     return MapRecipe("paper-8x6", "the paper's worked example (figure 6): 8 x 6 symbols, 3 obstacles hide 13",
-                     floor, ((scene, 1),))
+                     floor, ((scene, 1),), start_m=(0.25, 1.75), goal_m=(3.75, 1.75))
 
 
 def _large() -> MapRecipe:
