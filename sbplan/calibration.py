@@ -195,8 +195,7 @@ def extract_shapes(gray: np.ndarray, *, binarizer, extractor, approximator, matc
 
     binary = binarizer.binarize(gray)
     contours = [c for c in extractor.extract(binary) if not c.is_hole]
-    lo, hi = points_range
-    kept = [c for c in contours if lo <= len(c.points) <= hi]
+    kept = [contours[i] for i in np.flatnonzero(length_filter_steps(contours, points_range))]
     approximated = [approximator.approximate(c) for c in kept]
     keep = [i for i, p in enumerate(approximated) if len(p) >= 3]
     polygons = [approximated[i] for i in keep]
@@ -213,16 +212,28 @@ def extract_shapes(gray: np.ndarray, *, binarizer, extractor, approximator, matc
     return Shapes(polygons, np.asarray(n_points, np.int64), areas, centres, descriptors, len(contours))
 
 
+def length_filter_steps(contours: list, points_range: tuple[int, int]) -> np.ndarray:
+    """The paper's length filter on contour lengths counted in boundary steps (pixels).
+
+    Counting steps, not Euclidean length, needs no Freeman chain, which the hot path skips.
+    """
+    from .geometry import length_filter
+
+    steps = np.fromiter((len(c.points) for c in contours), np.float64, len(contours))
+    return length_filter(steps, min_length=points_range[0], max_length=points_range[1])
+
+
 def _stage_spec(stage) -> dict[str, Any]:
     return {"name": stage.name, "options": stage.config()}
 
 
-def _symbol_descriptor_from_image(symbol: Any, *, binarizer, extractor, approximator, matcher) -> np.ndarray:
+def _symbol_descriptor_from_image(symbol: Any, *, extractor, approximator, matcher) -> np.ndarray:
     gray = as_gray(load_image(symbol) if isinstance(symbol, (str, os.PathLike)) else symbol, name="symbol")
-    # An image of one symbol: its largest outer contour is the symbol, whatever the margins.
+    # An image of one symbol on a plain ground, at any scale: one global threshold separates them
+    # (a local binarizer sized for the floor's symbols would not), and the largest dark shape is it.
     h, w = gray.shape
-    shapes = extract_shapes(gray, binarizer=binarizer, extractor=extractor, approximator=approximator,
-                            matcher=matcher, points_range=(8, 4 * (h + w)))
+    shapes = extract_shapes(gray, binarizer=plugins.binarizer("otsu"), extractor=extractor,
+                            approximator=approximator, matcher=matcher, points_range=(8, 4 * (h + w)))
     if not shapes.polygons:
         raise CalibrationError("symbol image: no dark shape found in it")
     return shapes.descriptors[int(np.argmax(shapes.areas))]
@@ -420,7 +431,7 @@ def _symbol_members(shapes: Shapes, matcher, *, symbol: Any, chosen: dict) -> np
     if n == 0:
         raise CalibrationError("no symbols found in the reference image (no dark shapes of symbol size)")
     if symbol is not None:
-        ref = _symbol_descriptor_from_image(symbol, binarizer=chosen["binarizer"], extractor=chosen["extractor"],
+        ref = _symbol_descriptor_from_image(symbol, extractor=chosen["extractor"],
                                             approximator=chosen["approximator"], matcher=matcher)
         d = matcher.distance_matrix(shapes.descriptors, ref[None, :])[:, 0]
         near = d < getattr(matcher, "default_threshold", 0.5)

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from .calibration import Calibration, confuser_distances, derive_threshold, load_calibration
+from .calibration import Calibration, confuser_distances, derive_threshold, length_filter_steps, load_calibration
 from .errors import DetectionError
 from .geometry import centroids, signed_areas
 from .imageio import as_gray, load_image
@@ -148,8 +148,8 @@ class Detector:
         lap("binarize")
         contours = self.extractor.extract(binary)
         lap("extract")
-        lo, hi = cal.symbol_points_range
-        kept = [c for c in contours if not c.is_hole and lo <= len(c.points) <= hi]
+        outer = [c for c in contours if not c.is_hole]
+        kept = [outer[i] for i in np.flatnonzero(length_filter_steps(outer, cal.symbol_points_range))]
         polygons = [self.approximator.approximate(c) for c in kept]
         polygons = [p for p in polygons if len(p) >= 3]
         lap("approximate")

@@ -184,3 +184,20 @@ def test_cli_errors_are_one_line_and_files_survive(calibration, reference, tmp_p
         out = run_cli(*args)
         assert out.returncode != 0 and "Traceback" not in out.stderr, args
         assert len(out.stderr.strip().splitlines()) == 1, out.stderr
+
+
+def test_calibration_with_an_image_of_the_symbol(calibration, reference, tmp_path):
+    """--symbol: the reference symbol comes from an image of one symbol, not from the majority."""
+    x, y = calibration.grid.centres_px[0, 0]
+    half = int(np.sqrt(calibration.symbol_area_px))
+    crop = reference[int(y) - half:int(y) + half, int(x) - half:int(x) + half]
+    cv2.imwrite(str(tmp_path / "symbol.png"), cv2.resize(crop, None, fx=3, fy=3, interpolation=cv2.INTER_CUBIC))
+    given = calibrate(reference, symbol=tmp_path / "symbol.png")
+    assert given.grid.shape == calibration.grid.shape
+    assert given.stats["symbols"] == 40
+    # a symbol that is not on this floor finds no grid
+    other = np.full((120, 120), 200, np.uint8)
+    cv2.circle(other, (60, 60), 40, 30, -1)
+    cv2.imwrite(str(tmp_path / "disc.png"), other)
+    with pytest.raises(CalibrationError, match="no contour matches the given symbol"):
+        calibrate(reference, symbol=tmp_path / "disc.png")
