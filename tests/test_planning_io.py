@@ -1,0 +1,184 @@
+"""Obstacle loaders on real files (sbplan.export outputs of a detection, the OMPL maze images) and
+the ``sbplan plan`` command (subprocess: exit codes, one-line errors, no OMPL log without -v)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+import shapely
+from shapely.geometry import LineString, box
+
+from sbplan import export
+from sbplan.errors import MapFormatError
+from sbplan.planning import PlanningMap, load_obstacles
+from sbplan.planning.loaders import occupancy_rectangles
+
+ROOT = Path(__file__).resolve().parents[1]
+PAPER = ROOT / "maps" / "paper-8x6"
+MAZES = ROOT / "maps" / "ompl-mazes"
+
+
+@pytest.fixture(scope="module")
+def detection_files(tmp_path_factory):
+    from sbplan.calibration import calibrate
+    from sbplan.detection import Detector
+    from sbplan.imageio import load_image, write_json
+    from sbplan.workspace import load_workspace
+
+    out = tmp_path_factory.mktemp("paper")
+    cal = calibrate(PAPER / "reference.png", workspace=load_workspace(PAPER))
+    det = Detector(cal)(load_image(PAPER / "scene-01.png"))
+    write_json(out / "result.json", det.to_json())
+    export.write_geojson(out / "obstacles.geojson", det)
+    export.write_nav2(out / "nav2", det)
+    return out, det
+
+
+def cell_squares(det):
+    cal = det.calibration
+    sq = []
+    for r, c in det.occupied_cells:
+        w = cal.workspace.lattice_to_world(np.array([[c - 0.5, r - 0.5], [c + 0.5, r + 0.5]]), cal.grid.rows)
+        sq.append(box(*w.min(0), *w.max(0)))
+    return shapely.union_all(sq)
+
+
+def test_detection_json_and_geojson_give_the_mars_and_the_bounds(detection_files):
+    out, det = detection_files
+    want = [shapely.Polygon(ob.mar_m) for ob in det.obstacles]
+    for name in ("result.json", "obstacles.geojson"):
+        got = load_obstacles(out / name)
+        assert got.bounds == pytest.approx(det.calibration.world_bounds(), abs=1e-6)
+        assert len(got.polygons) == len(want) == 3
+        for p in got.polygons:
+            # The files round coordinates to 1e-6 m.
+            assert min(p.hausdorff_distance(q) for q in want) < 2e-6
+    outlines = load_obstacles(out / "result.json", use="outline").polygons
+    assert shapely.union_all(outlines).area < shapely.union_all(want).area
+
+
+def test_nav2_map_gives_exactly_the_occupied_cells(detection_files):
+    out, det = detection_files
+    got = load_obstacles(out / "nav2" / "map.yaml")
+    assert got.bounds == pytest.approx(det.calibration.world_bounds(), abs=1e-6)
+    union = shapely.union_all(got.polygons)
+    assert union.symmetric_difference(cell_squares(det)).area < 1e-6
+    # A route between the map's start and goal on the nav2 obstacles keeps the radius.
+    ws = det.calibration.workspace
+    pm = PlanningMap(got.polygons, robot_radius=ws.robot_radius_m, bounds=got.bounds)
+    route = pm.solve(ws.start_m, ws.goal_m)
+    assert LineString(route.waypoints).distance(union) >= ws.robot_radius_m - 1e-6
+
+
+@pytest.mark.parametrize("name", ["ompl-maze-normal.png", "ompl-maze-thin.png"])
+def test_maze_images_become_exact_rectangles_not_one_mar(name):
+    img = cv2.imread(str(MAZES / name), cv2.IMREAD_GRAYSCALE)
+    got = load_obstacles(MAZES / name)
+    assert got.bounds == (0.0, 0.0, 450.0, 450.0)
+    assert len(got.polygons) > 20
+    assert all(len(p.exterior.coords) == 5 for p in got.polygons)  # axis-aligned rectangles
+    union = shapely.union_all(got.polygons)
+    assert union.area == pytest.approx(float((img < 128).sum()))
+    # Frame: origin bottom-left, y up; pixel (row, col) is free iff its centre is outside the union.
+    rng = np.random.default_rng(0)
+    rc = rng.integers(0, 450, (300, 2))
+    centres = np.c_[rc[:, 1] + 0.5, 450 - rc[:, 0] - 0.5]
+    inside = shapely.contains_xy(union, centres[:, 0], centres[:, 1])
+    np.testing.assert_array_equal(inside, img[rc[:, 0], rc[:, 1]] < 128)
+    # Entrance (top) to exit (bottom right) through the corridors, never through a wall.
+    route = PlanningMap(got.polygons, robot_radius=2.0, bounds=got.bounds).solve((205, 445), (445, 55))
+    assert route.status == "exact" and len(route.waypoints) > 5
+    assert LineString(route.waypoints).distance(union) >= 2.0 - 1e-3
+
+
+def test_occupancy_rectangles_with_resolution_and_origin():
+    occ = np.zeros((4, 6), bool)
+    occ[0:2, 1:3] = True  # top-left block
+    occ[3, 5] = True
+    rects = occupancy_rectangles(occ, resolution=0.5, origin=(10.0, 20.0))
+    union = shapely.union_all(rects)
+    assert union.symmetric_difference(shapely.union_all([box(10.5, 21.0, 11.5, 22.0), box(12.5, 20.0, 13.0, 20.5)])).area < 1e-12
+
+
+@pytest.mark.parametrize("content, fragment", [
+    ("", "not valid JSON"),
+    ("{\"type\": \"FeatureCollection\", \"features\": [{\"type\": \"Feature\", \"geometry\": "
+     "{\"type\": \"Point\", \"coordinates\": [1, 2]}}]}", "expected Polygon"),
+    ("{\"format\": \"sbplan.detection/1\", \"obstacles\": [{\"id\": 1}]}", "mar_m"),
+    ("[1, 2]", "neither a GeoJSON"),
+])
+def test_bad_obstacle_files_raise_map_format_errors(tmp_path, content, fragment):
+    p = tmp_path / "bad.json"
+    p.write_text(content)
+    with pytest.raises(MapFormatError, match=fragment):
+        load_obstacles(p)
+
+
+# -- the CLI ---------------------------------------------------------------------------------------
+def sbplan(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "sbplan", *map(str, args)], capture_output=True, text=True, cwd=cwd)
+
+
+MAZE_ARGS = ("plan", "--obstacles", MAZES / "ompl-maze-normal.png", "--start", "205,445", "--goal", "445,55",
+             "--radius", "2")
+
+
+def test_cli_json_and_plot(tmp_path):
+    png = tmp_path / "route.png"
+    r = sbplan(*MAZE_ARGS, "--json", "--plot", png)
+    assert r.returncode == 0, r.stderr
+    data = json.loads(r.stdout)
+    assert data["format"] == "sbplan.route/1" and data["status"] == "exact" and data["planner"] == "aux-corner"
+    wp = np.array(data["waypoints"])
+    assert wp[0].tolist() == [205, 445] and wp[-1].tolist() == [445, 55]
+    assert data["length"] == pytest.approx(np.hypot(*np.diff(wp, axis=0).T).sum())
+    img = cv2.imread(str(png))
+    assert img.shape == (800, 800, 3)
+    # The route's colour (BGR 200, 80, 0), the start's green and the goal's red are drawn.
+    for bgr in ((200, 80, 0), (0, 170, 0), (0, 0, 220)):
+        assert (np.abs(img.astype(int) - bgr).sum(axis=2) < 30).sum() > 20, bgr
+
+
+def test_cli_ompl_planner_logs_only_with_verbose():
+    args = ("plan", "--obstacles", MAZES / "ompl-maze-normal.png", "--start", "205,445", "--goal", "205,400",
+            "--radius", "2", "--planner", "rrt-star", "--time-limit", "0.1")
+    r = sbplan(*args)
+    assert r.returncode == 0, r.stderr
+    assert "Info:" not in r.stdout + r.stderr and "Debug:" not in r.stdout + r.stderr
+    assert r.stderr == ""
+    assert r.stdout.startswith("exact route by rrt-star")
+    v = sbplan("-v", *args)
+    assert v.returncode == 0 and "Info:" in v.stdout + v.stderr
+
+
+@pytest.mark.parametrize("extra, fragment", [
+    (("--start", "10,10"), "start (10, 10) is inside an obstacle"),
+    (("--goal", "500,10"), "outside the workspace bounds"),
+    (("--radius", "-1"), "robot_radius"),
+    (("--planner", "nope"), "nope"),
+    (("--obstacles", "missing.png"), "no such file"),
+])
+def test_cli_errors_are_one_line(tmp_path, extra, fragment):
+    args = list(MAZE_ARGS)
+    for k, v in zip(extra[0::2], extra[1::2]):
+        if k in args:
+            args[args.index(k) + 1] = v
+        else:
+            args += [k, v]
+    r = sbplan(*args, cwd=tmp_path)
+    assert r.returncode != 0
+    assert "Traceback" not in r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("sbplan: error:") and fragment in lines[0], r.stderr
+
+
+def test_cli_empty_obstacle_file_is_an_error(tmp_path):
+    (tmp_path / "empty.geojson").write_text("")
+    r = sbplan("plan", "--obstacles", tmp_path / "empty.geojson", "--start", "1,1", "--goal", "2,2", "--radius", "0")
+    assert r.returncode != 0 and r.stderr.startswith("sbplan: error:") and "Traceback" not in r.stderr
