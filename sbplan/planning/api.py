@@ -95,7 +95,9 @@ class PlanningMap:
             raise OutOfBoundsError(f"{which} ({p[0]:g}, {p[1]:g}) is outside the workspace bounds {self.bounds}")
         if len(self._real_tree.query(Point(p), predicate="intersects")):
             raise err(f"{which} ({p[0]:g}, {p[1]:g}) is inside an obstacle")
-        if not self.vmap.covered(p[None])[0]:
+        # On the enlarged boundary is free: routes run along it, and a robot replanning from a
+        # point of its route stands there.
+        if not self.vmap.covered(p[None], boundary=False)[0]:
             return p, False
         q = self._escape(p)
         if q is None:
@@ -285,10 +287,11 @@ def replan(route: Route, position: Any, new_obstacles: Any, *, time_limit: float
     """
     if not isinstance(route, Route) or route.map is None:
         raise InputError("route: expected a Route returned by sbplan.plan")
+    t0 = time.perf_counter()
     p = _point(position, "position")
+    # A copy, so the caller's route (and the map cache of plan()) keep the old obstacles.
     pm = route.map.copy()
     big = pm.add_obstacles(new_obstacles if not isinstance(new_obstacles, (Polygon,)) else [new_obstacles])
-    t0 = time.perf_counter()
     wp = route.waypoints
     # The remaining route: from the position's projection onto the nearest leg, on to the goal.
     if len(wp) >= 2:

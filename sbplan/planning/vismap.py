@@ -69,7 +69,8 @@ class VisibilityMap:
         if not self.polygons or len(pts) == 0:
             return out
         geoms = shapely.points(pts)
-        pred = "intersects" if boundary else "contains_properly"
+        # STRtree evaluates predicate(point, polygon): "within" is the strict interior.
+        pred = "intersects" if boundary else "within"
         ip, io = self._tree.query(geoms, predicate=pred)
         out[ip] = True
         return out
