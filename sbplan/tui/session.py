@@ -127,10 +127,26 @@ class Session:
 
     # -- the job -------------------------------------------------------------------------------
     def load_reference(self, path: str | os.PathLike) -> np.ndarray:
+        """Load the reference image at ``path``, or the reference.png of the map folder ``path``.
+
+        A map folder starts a new session on that map: its workspace, its first scene, and no
+        calibration, detection, route or start/goal carried over from the previous map.
+        """
+        from ..errors import MapFormatError
         from ..imageio import load_image
 
-        image = load_image(path)
-        self.reference_path, self.reference = Path(path), image
+        p = Path(path)
+        if p.is_dir():
+            if not (p / "reference.png").is_file():
+                raise MapFormatError(f"{path}: not a map folder (no reference.png)")
+            fresh = Session.from_map(p)
+            image = load_image(fresh.reference_path)
+            fresh.planner = self.planner
+            self.__dict__.update(fresh.__dict__)
+            self.reference = image
+            return image
+        image = load_image(p)
+        self.reference_path, self.reference = p, image
         return image
 
     def calibrate(self, stages: dict[str, str]) -> Any:

@@ -64,8 +64,11 @@ class CalibrationScreen(JobScreen):
             self.action_open_reference(calibrate_after=self.app.auto)
 
     # -- actions ---------------------------------------------------------------------------------
-    def action_open_reference(self, calibrate_after: bool = False) -> None:
-        """Open the reference named in the path input (an image, or a saved calibration .json)."""
+    def action_open_reference(self, calibrate_after: bool | None = None) -> None:
+        """Open the reference named in the path input (an image, a map folder, or a saved
+        calibration .json); then calibrate when ``calibrate_after`` (default: the app's auto)."""
+        if calibrate_after is None:
+            calibrate_after = self.app.auto
         path = self.query_one("#ref-path", PathInput).value.strip()
         if not path:
             self.app.report_error(InputError("reference: type the path of the empty-floor image"))
@@ -151,6 +154,7 @@ class CalibrationScreen(JobScreen):
 
     # -- events ----------------------------------------------------------------------------------
     def on_input_submitted(self, event: PathInput.Submitted) -> None:
+        self.set_focus(None)  # so the screen keys (1 2 3, c, ...) work right after Enter
         if event.input.id == "ref-path":
             self.action_open_reference()
         elif event.input.id == "cal-path":

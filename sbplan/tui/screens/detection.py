@@ -33,6 +33,7 @@ class DetectionScreen(JobScreen):
 
     def compose(self) -> ComposeResult:
         s = self.session
+        self._scene_seen = s.scene_path
         yield Header()
         with Horizontal(classes="body"):
             with Vertical(classes="main"):
@@ -61,6 +62,9 @@ class DetectionScreen(JobScreen):
 
     def on_screen_resume(self) -> None:
         s = self.session
+        if s.scene_path != self._scene_seen:  # another map was opened on screen 1
+            self._scene_seen = s.scene_path
+            self.query_one("#scene-path", PathInput).value = display_path(s.scene_path)
         if s.detection is not None and s.detection.calibration is not s.calibration:
             s.detection = None  # calibrated again since: the old cells no longer mean anything
         self._show()
@@ -142,15 +146,16 @@ class DetectionScreen(JobScreen):
             j = ob.to_json()
             size = j.get("size_m")
             table.add_row(str(ob.id), str(len(ob.cells)),
-                          f"{size[0]:.2f} x {size[1]:.2f}" if size else "-",
-                          f"{j['angle_m_deg']:.1f}" if "angle_m_deg" in j else "-",
-                          f"{j['centre_m'][0]:.2f}, {j['centre_m'][1]:.2f}" if "centre_m" in j else "-",
+                          f"{size[0]:.2f}×{size[1]:.2f}" if size else "-",
+                          f"{round(j['angle_m_deg'], 1) + 0.0:.1f}" if "angle_m_deg" in j else "-",
+                          f"{j['centre_m'][0]:.2f},{j['centre_m'][1]:.2f}" if "centre_m" in j else "-",
                           key=str(ob.id))
         for stage, ms in det.timings_ms.items():
             timings.add_row(stage, "··· " if self.app.hide_timings else f"{ms:.1f}")
 
     # -- events ----------------------------------------------------------------------------------
     def on_input_submitted(self, event: PathInput.Submitted) -> None:
+        self.set_focus(None)  # so the screen keys (1 2 3, d, e) work right after Enter
         if event.input.id == "scene-path":
             self.action_detect()
         elif event.input.id == "export-dir":

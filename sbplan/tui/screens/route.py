@@ -52,6 +52,7 @@ class RouteScreen(JobScreen):
         s = self.session
         from ... import plugins
 
+        self._scene_seen = s.scene_path
         yield Header()
         with Horizontal(classes="body"):
             with Vertical(classes="main"):
@@ -87,6 +88,9 @@ class RouteScreen(JobScreen):
 
     def on_screen_resume(self) -> None:
         s = self.session
+        if s.scene_path != self._scene_seen:  # another map was opened on screen 1
+            self._scene_seen = s.scene_path
+            self.query_one("#newer-path", PathInput).value = display_path(s.scene_path)
         self.query_one("#start", Input).value = self._fmt(s.start)
         self.query_one("#goal", Input).value = self._fmt(s.goal)
         self._show()
@@ -237,9 +241,11 @@ class RouteScreen(JobScreen):
                 self._read_endpoints()
             except InputError as exc:
                 self.app.report_error(exc)
-                return
+                return  # the cursor stays in the field to fix it
             self._show()
+            self.query_one("#map", MapView).focus()
         elif event.input.id == "newer-path":
+            self.query_one("#map", MapView).focus()
             self.action_newer_image()
 
     def on_select_changed(self, event: Select.Changed) -> None:
