@@ -61,7 +61,8 @@ class CalibrationScreen(JobScreen):
         if self.session.reference is not None:
             self._show()
         elif self.session.reference_path is not None:
-            self.action_open_reference(calibrate_after=self.app.auto)
+            # after the first paint: the screen shows at once, the image follows
+            self.call_after_refresh(self.action_open_reference)
 
     # -- actions ---------------------------------------------------------------------------------
     def action_open_reference(self, calibrate_after: bool | None = None) -> None:

@@ -15,8 +15,8 @@ from ..widgets.mapview import MapView
 from ..widgets.path_input import PathInput
 from .base import JobScreen
 
-LEGEND = ("[red]⣿ obstacles (MARs)[/]  [magenta]⣿ dynamic obstacles[/]  [green]⠤ route[/]  "
-          "[yellow]⠔ old route[/]  [black on cyan]S[/] start [black on cyan]G[/] goal "
+LEGEND = ("[#e04040]⣿ obstacles (MARs)[/]  [#b070ff]⣿ dynamic obstacles[/]  [#40e040]⠤ route[/]  "
+          "[#ffb000]⠔ old route[/]  [black on cyan]S[/] start [black on cyan]G[/] goal "
           "[black on cyan]R[/] robot  [black on white]+[/] cursor")
 
 

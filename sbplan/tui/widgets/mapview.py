@@ -14,12 +14,13 @@ from ..render import BrailleCanvas, MapFrame
 
 #: bottom first; the top layer with a dot in a cell gives the cell its colour
 LAYERS = ("grid", "obstacle", "old_route", "dynamic", "route", "marker", "cursor")
+# explicit colours: the theme's ANSI red and magenta look alike, and dynamic obstacles must stand out
 STYLES = {
     "grid": Style(color="grey42"),
-    "obstacle": Style(color="red", bold=True),
-    "old_route": Style(color="yellow"),
-    "dynamic": Style(color="magenta", bold=True),
-    "route": Style(color="green", bold=True),
+    "obstacle": Style(color="#e04040", bold=True),
+    "old_route": Style(color="#ffb000"),
+    "dynamic": Style(color="#b070ff", bold=True),
+    "route": Style(color="#40e040", bold=True),
     "marker": Style(color="black", bgcolor="cyan", bold=True),
     "cursor": Style(color="black", bgcolor="white", bold=True),
 }
