@@ -322,3 +322,18 @@ async def test_command_palette_has_every_action_and_runs_them():
         assert isinstance(app.screen, HelpScreen)
         await pilot.press("escape")
         assert not isinstance(app.screen, HelpScreen)
+
+
+def test_cli_refuses_a_missing_map_and_a_non_terminal(tmp_path):
+    import subprocess
+    import sys
+
+    def run(*args):
+        return subprocess.run([sys.executable, "-m", "sbplan", "tui", *args], capture_output=True, text=True,
+                              cwd=REPO, timeout=60)
+
+    missing = run(str(tmp_path / "nowhere"))
+    assert missing.returncode != 0
+    assert missing.stderr.strip().splitlines() == [f"sbplan: error: {tmp_path / 'nowhere'}: no such map folder"]
+    piped = run("maps/paper-8x6")  # stdout is a pipe here
+    assert piped.returncode != 0 and "sbplan: error: tui: standard output is not a terminal" in piped.stderr
