@@ -204,6 +204,7 @@ def measure_world(name, obs, bounds, radius, queries, *, planners, time_limit, n
            "corners": int(pm.vmap.corners.shape[0]),
            "build_ms": _median_ms(build), "cold_ms": _median_ms(cold), "cold_p90_ms":
            float(np.percentile(cold, 90) * 1e3) if cold else math.nan,
+           "cold_ms_ompl_queries": _median_ms(cold[:n_ompl]),
            "warm_ms": _median_ms(warm), "replan_ms": _median_ms(rep), "replans": len(rep), "replanned": rep_ok,
            "ompl": {}}
     for name_p in planners:
@@ -222,6 +223,13 @@ def measure_world(name, obs, bounds, radius, queries, *, planners, time_limit, n
                                "mean_ratio": statistics.fmean(ratios) if ratios else math.nan,
                                "max_ratio": max(ratios) if ratios else math.nan,
                                "median_ms": _median_ms(times)}
+    # OMPL's best planner on this world: the shortest mean length (then the fastest), and how much
+    # slower it is than aux-corner's cold query on the same queries.
+    done = [(o["mean_ratio"], o["median_ms"], p) for p, o in row["ompl"].items() if o["solved"] and not o["failed"]]
+    if done:
+        ratio, ms, best = min(done)
+        row["best_ompl"] = {"planner": best, "mean_ratio": ratio, "median_ms": ms,
+                            "speedup": ms / row["cold_ms_ompl_queries"]}
     return row
 
 
@@ -356,3 +364,16 @@ def print_table(rows, planners, tl, n_ompl, seed) -> None:
             cells.append(f"{o['mean_ratio']:.3f}/{o['max_ratio']:.3f}{fail} {o['median_ms']:.0f}ms"
                          if o["solved"] else f"failed {o['failed']}")
         print(f"{r['world']:22} " + " ".join(f"{c:>24}" for c in cells))
+    print()
+    print("OMPL's best planner per world (shortest mean length, no failure) vs aux-corner's cold query on the "
+          "same queries")
+    hdr = f"{'world':22} {'best OMPL':>18} {'length':>7} {'OMPL ms':>8} {'aux ms':>7} {'speedup':>8}"
+    print(hdr)
+    print("-" * len(hdr))
+    for r in rows:
+        b = r.get("best_ompl")
+        if b is None:
+            print(f"{r['world']:22} {'(every planner failed at least once)':>52}")
+            continue
+        print(f"{r['world']:22} {b['planner']:>18} {b['mean_ratio']:>7.3f} {b['median_ms']:>8.1f} "
+              f"{r['cold_ms_ompl_queries']:>7.2f} {b['speedup']:>7.0f}x")
