@@ -38,7 +38,9 @@ def import_command(module_name: str):
         raise
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(selected: str | None = None) -> argparse.ArgumentParser:
+    """The argument parser. ``selected`` names the command about to run: the others may register
+    a light parser (``add_arguments_light``) so that start-up does not import what they need."""
     parser = argparse.ArgumentParser(
         prog="sbplan",
         description="Find obstacles on a floor of reference symbols from a ceiling camera, and plan routes around them.",
@@ -51,13 +53,19 @@ def build_parser() -> argparse.ArgumentParser:
         if module is None:
             continue
         p = sub.add_parser(name, help=module.HELP, description=getattr(module, "DESCRIPTION", module.HELP))
-        module.add_arguments(p)
+        light = getattr(module, "add_arguments_light", None)
+        if light is not None and name != selected:
+            light(p)
+        else:
+            module.add_arguments(p)
         p.set_defaults(_run=module.run)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    selected = next((a for a in argv if not a.startswith("-")), None)
+    parser = build_parser(selected if selected in COMMANDS else None)
     args = parser.parse_args(argv)
     if not getattr(args, "_run", None):
         parser.print_help()

@@ -27,5 +27,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         p.set_defaults(_bench=module.run)
 
 
+def add_arguments_light(parser: argparse.ArgumentParser) -> None:
+    """Nothing: benchmark modules import numpy and OpenCV, which other commands need not wait for."""
+
+
 def run(args: argparse.Namespace) -> int:
     return args._bench(args)
