@@ -77,14 +77,19 @@ def test_nav2_map_gives_exactly_the_occupied_cells(detection_files):
 
 
 @pytest.mark.parametrize("name", ["ompl-maze-normal.png", "ompl-maze-thin.png"])
-def test_maze_images_become_exact_rectangles_not_one_mar(name):
+def test_maze_images_become_exact_polygons_not_one_mar(name):
     img = cv2.imread(str(MAZES / name), cv2.IMREAD_GRAYSCALE)
     got = load_obstacles(MAZES / name)
     assert got.bounds == (0.0, 0.0, 450.0, 450.0)
-    assert len(got.polygons) > 20
-    assert all(len(p.exterior.coords) == 5 for p in got.polygons)  # axis-aligned rectangles
     union = shapely.union_all(got.polygons)
     assert union.area == pytest.approx(float((img < 128).sum()))
+    assert sum(p.area for p in got.polygons) == pytest.approx(union.area)  # disjoint
+    # Exact polygons: axis-parallel edges, and not one rectangle around the connected walls.
+    for p in got.polygons:
+        for ring in (p.exterior, *p.interiors):
+            d = np.diff(np.asarray(ring.coords), axis=0)
+            assert (np.min(np.abs(d), axis=1) == 0).all()
+    assert union.area < 0.8 * 450 * 450  # the walls' MAR would be the whole image
     # Frame: origin bottom-left, y up; pixel (row, col) is free iff its centre is outside the union.
     rng = np.random.default_rng(0)
     rc = rng.integers(0, 450, (300, 2))
@@ -182,3 +187,25 @@ def test_cli_empty_obstacle_file_is_an_error(tmp_path):
     (tmp_path / "empty.geojson").write_text("")
     r = sbplan("plan", "--obstacles", tmp_path / "empty.geojson", "--start", "1,1", "--goal", "2,2", "--radius", "0")
     assert r.returncode != 0 and r.stderr.startswith("sbplan: error:") and "Traceback" not in r.stderr
+
+
+def test_ompl_planners_are_silent_through_the_api():
+    code = ("import sbplan; from shapely.geometry import box; "
+            "r = sbplan.plan([box(4, 2, 6, 8)], (1, 5), (9, 5), robot_radius=0.2, bounds=(0, 0, 10, 10), "
+            "planner='rrt-connect', time_limit=0.2); print(r.status)")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout == "exact\n" and r.stderr == ""
+
+
+def test_bench_plan_quick_runs_and_writes_an_ompl_log(tmp_path):
+    log = tmp_path / "plan.log"
+    r = sbplan("bench", "plan", "--quick", "--worlds", "rect-5", "--planners", "rrt-connect", "--queries", "3",
+               "--time-limit", "0.05", "--json", "--ompl-log", log)
+    assert r.returncode == 0, r.stderr
+    assert r.stderr == ""
+    data = json.loads(r.stdout)
+    (row,) = data["rows"]
+    assert row["world"] == "rect-5" and row["queries"] == 3 and row["obstacles"] == 5
+    assert set(row["ompl"]) == {"rrt-connect"}
+    assert "AuxCorner" in log.read_text() and "RRTConnect" in log.read_text()

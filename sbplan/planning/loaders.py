@@ -1,8 +1,8 @@
 """Obstacle loaders: sbplan detection JSON, GeoJSON, nav2 map.yaml and occupancy images.
 
 Every loader returns an :class:`ObstacleSet` in the world frame: ``(x, y)`` metres (or pixels with
-resolution 1), x right, y up. Occupancy images become exact rectangles (run-length merging of
-occupied pixels), never one rectangle around a connected wall structure.
+resolution 1), x right, y up. Occupancy images become exact polygons (run-length rectangles of the
+occupied pixels, merged by a union), never one rectangle around a connected wall structure.
 """
 
 from __future__ import annotations
@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import shapely
 from shapely.geometry import Polygon, box
 
 from ..errors import ImageError, MapFormatError
@@ -71,7 +72,7 @@ def load_obstacles(path: Any, *, resolution: float | None = None, use: str = "ma
     if not math.isfinite(res) or res <= 0:
         raise MapFormatError(f"resolution: must be > 0, got {resolution!r}")
     occ = img < 128
-    return ObstacleSet(occupancy_rectangles(occ, resolution=res),
+    return ObstacleSet(occupancy_polygons(occ, resolution=res),
                        (0.0, 0.0, img.shape[1] * res, img.shape[0] * res), str(p))
 
 
@@ -198,9 +199,24 @@ def _from_nav2(p: Path) -> ObstacleSet:
     if mode != "raw":
         occupied |= (occ >= free_t) & ~occupied  # unknown counts as obstacle
     h, w = img.shape
-    polys = occupancy_rectangles(occupied, resolution=res, origin=(origin[0], origin[1]))
+    polys = occupancy_polygons(occupied, resolution=res, origin=(origin[0], origin[1]))
     bounds = (origin[0], origin[1], origin[0] + w * res, origin[1] + h * res)
     return ObstacleSet(polys, bounds, str(p))
+
+
+def occupancy_polygons(occupied: np.ndarray, *, resolution: float = 1.0,
+                       origin: tuple[float, float] = (0.0, 0.0)) -> list[Polygon]:
+    """Occupied pixels as exact polygons (with holes): the union of :func:`occupancy_rectangles`,
+    collinear vertices removed. Same frame and parameters as :func:`occupancy_rectangles`.
+
+    Merged walls have fewer edges than their rectangles (the maze: 160 instead of 260), and no
+    shared inner edges or T-junction vertices for the planner to test.
+    """
+    rects = occupancy_rectangles(occupied, resolution=resolution, origin=origin)
+    if not rects:
+        return []
+    u = shapely.union_all(rects)
+    return [g.simplify(0.0) for g in getattr(u, "geoms", [u]) if isinstance(g, Polygon) and g.area > 0]
 
 
 def occupancy_rectangles(occupied: np.ndarray, *, resolution: float = 1.0,

@@ -27,8 +27,15 @@ OMPL_PLANNERS = {
 }
 
 
+#: OMPL's console log during sbplan's solves: off unless ``quiet(verbose=True)`` asked for it (the
+#: CLI's -v). A plain flag, not an OMPL object (nanobind's leak warnings).
+_verbose = False
+
+
 def quiet(verbose: bool = False) -> None:
-    """Silence OMPL's console log unless verbose."""
+    """Silence OMPL's console log (the default for sbplan's solves) unless verbose."""
+    global _verbose
+    _verbose = bool(verbose)
     ou.setLogLevel(ou.LOG_INFO if verbose else ou.LOG_NONE)
 
 
@@ -129,6 +136,7 @@ def solve_ompl(pmap: Any, start: Any, goal: Any, name: str, *, time_limit: float
     s0, g0 = np.asarray(start, float), np.asarray(goal, float)
     s, s_esc = pmap.check_endpoint(s0, "start")
     g, g_esc = pmap.check_endpoint(g0, "goal")
+    ou.setLogLevel(ou.LOG_INFO if _verbose else ou.LOG_NONE)
     if seed is not None:
         ou.RNG.setSeed(int(seed))
     ss = make_setup(pmap)
