@@ -114,7 +114,7 @@ def write_atomic(path: str | os.PathLike, write: Callable[[Any], None] | bytes |
 
 def write_json(path: str | os.PathLike, obj: Any) -> Path:
     """Write ``obj`` as indented JSON, atomically."""
-    text = json.dumps(obj, indent=2, default=_json_default) + "\n"
+    text = json.dumps(obj, indent=2, default=json_default) + "\n"
     return write_atomic(path, text)
 
 
@@ -128,11 +128,14 @@ def write_image(path: str | os.PathLike, image: np.ndarray) -> Path:
     return write_atomic(p, buf.tobytes())
 
 
-def _json_default(obj: Any) -> Any:
+def json_default(obj: Any) -> Any:
+    """``json.dumps(default=...)`` for numpy values, arrays, paths and tuples."""
     if isinstance(obj, np.generic):
         return obj.item()
     if isinstance(obj, np.ndarray):
         return obj.tolist()
     if isinstance(obj, Path):
         return str(obj)
+    if isinstance(obj, tuple):
+        return list(obj)
     raise TypeError(f"not JSON serializable: {type(obj).__name__}")

@@ -89,7 +89,6 @@ class OkeExtractor(BoundaryExtractor):
     name = "oke"
     description = "paper's OKE: 2x2 window patterns -> crack elements -> sorted closed contours (numpy)"
 
-
     def extract(self, binary: np.ndarray) -> list[Contour]:
         """Return every outer boundary and hole boundary of ``binary``.
 

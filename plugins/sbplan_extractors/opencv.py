@@ -28,7 +28,6 @@ class OpenCVExtractor(BoundaryExtractor):
     name = "opencv"
     description = "OpenCV border following (findContours, RETR_TREE, CHAIN_APPROX_NONE)"
 
-
     def extract(self, binary: np.ndarray) -> list[Contour]:
         """Return every outer boundary and hole boundary of ``binary``.
 

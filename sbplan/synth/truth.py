@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from ..imageio import json_default
 from ..errors import MapFormatError
 
 #: Cell states in :attr:`GroundTruth.cells`.
@@ -74,7 +75,7 @@ class GroundTruth:
         }
 
     def to_json(self) -> str:
-        return json.dumps(self.to_dict(), indent=1, default=_default) + "\n"
+        return json.dumps(self.to_dict(), indent=1, default=json_default) + "\n"
 
     @classmethod
     def from_json(cls, source: str | os.PathLike | dict) -> "GroundTruth":
@@ -106,13 +107,3 @@ class GroundTruth:
             )
         except KeyError as exc:
             raise MapFormatError(f"ground truth: missing key {exc}") from None
-
-
-def _default(obj: Any) -> Any:
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, tuple):
-        return list(obj)
-    raise TypeError(f"not JSON serializable: {type(obj).__name__}")
