@@ -18,6 +18,7 @@ import shapely
 from shapely.geometry import Polygon
 
 from ..errors import SceneError
+from .aruco import aruco_pattern
 from .camera import Camera
 from .conditions import Effects, condition_effects
 from .floor import FloorSpec, SceneSpec, rings_centroid
@@ -55,8 +56,9 @@ def symbol_pattern(floor: FloorSpec) -> tuple[np.ndarray, list[list[np.ndarray]]
     return alpha, footprints
 
 
-#: layout name -> function(floor) -> (ink alpha, per-cell footprints). An ArUco layout adds an entry.
-PATTERNS: dict[str, Callable[[FloorSpec], tuple[np.ndarray, list]]] = {"symbols": symbol_pattern}
+#: layout name -> function(floor) -> (ink alpha, per-cell footprints).
+PATTERNS: dict[str, Callable[[FloorSpec], tuple[np.ndarray, list]]] = {"symbols": symbol_pattern,
+                                                                       "aruco": aruco_pattern}
 
 
 @functools.lru_cache(maxsize=6)
