@@ -49,7 +49,9 @@ def run(args: argparse.Namespace) -> int:
     ws = cal.workspace
     if ws.start_m and ws.goal_m:
         from ..planning import plan
+        from ..planning.ompl_planners import quiet
 
+        quiet(bool(getattr(args, "verbose", False)))  # OMPL's log only with -v
         obstacles = [ob.mar_m for ob in detection.obstacles]
         route = plan(obstacles, ws.start_m, ws.goal_m, robot_radius=ws.robot_radius_m, planner=args.planner,
                      bounds=cal.world_bounds())
