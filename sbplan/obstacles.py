@@ -37,8 +37,7 @@ class Obstacle:
         l1, l2 = float(np.hypot(*e1)), float(np.hypot(*e2))
         long_edge = e1 if l1 >= l2 else e2
         angle = float(np.degrees(np.arctan2(long_edge[1], long_edge[0])))
-        angle = (angle + 90.0) % 180.0 - 90.0  # in [-90, 90): the long side's direction
-        return max(l1, l2), min(l1, l2), round(angle, 3) + 0.0  # + 0.0: no "-0.0" in reports
+        return max(l1, l2), min(l1, l2), axis_angle(angle, 3)
 
     def to_json(self) -> dict:
         length, width, angle = self._size_angle(self.mar_px)
@@ -61,6 +60,13 @@ class Obstacle:
                 "angle_m_deg": round(angle_m, 3),
             })
         return out
+
+
+def axis_angle(degrees: float, decimals: int) -> float:
+    """A direction without sense, in (-90, 90] degrees, rounded: a vertical side is always 90,
+    never -90, and never -0.0."""
+    angle = round(float(degrees), decimals)
+    return 90.0 - (90.0 - angle) % 180.0 + 0.0
 
 
 def mar_opencv(points: np.ndarray) -> np.ndarray:

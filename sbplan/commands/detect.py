@@ -24,6 +24,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def summary_lines(detection) -> list[str]:
+    from ..obstacles import axis_angle
+
     lines = [
         f"symbols: {detection.symbols_expected} expected, {detection.symbols_found} found",
         f"occupied cells: {len(detection.occupied_cells)}  (row, col): "
@@ -33,7 +35,7 @@ def summary_lines(detection) -> list[str]:
     for ob in detection.obstacles:
         j = ob.to_json()
         lines.append(f"  #{ob.id}: {len(ob.cells)} cells, MAR {j['size_m'][0]:.2f} x {j['size_m'][1]:.2f} m "
-                     f"at ({j['centre_m'][0]:.2f}, {j['centre_m'][1]:.2f}) m, angle {round(j['angle_m_deg'], 1) + 0.0:.1f} deg")
+                     f"at ({j['centre_m'][0]:.2f}, {j['centre_m'][1]:.2f}) m, angle {axis_angle(j['angle_m_deg'], 1):.1f} deg")
     stages = ", ".join(f"{k}={v}" for k, v in detection.stages.items())
     lines.append(f"stages: {stages}; {detection.timings_ms['total']:.1f} ms")
     return lines
