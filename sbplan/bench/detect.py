@@ -37,14 +37,22 @@ BASELINES = ("aruco-grid", "absdiff", "mog2")
 DEFAULT = "sbplan default"
 
 
-def _size(text: str) -> tuple[int, int]:
+def _pair(text: str, low: int) -> tuple[int, int]:
     try:
         a, b = (int(v) for v in text.lower().split("x"))
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected WxH, e.g. 1280x960, got {text!r}") from None
-    if a < 16 or b < 16:
-        raise argparse.ArgumentTypeError(f"expected both sides >= 16, got {text!r}")
+        raise argparse.ArgumentTypeError(f"expected AxB, e.g. 1280x960, got {text!r}") from None
+    if a < low or b < low:
+        raise argparse.ArgumentTypeError(f"expected both numbers >= {low}, got {text!r}")
     return a, b
+
+
+def _size(text: str) -> tuple[int, int]:
+    return _pair(text, 16)
+
+
+def _grid(text: str) -> tuple[int, int]:
+    return _pair(text, 1)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -52,7 +60,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="conditions to run (names or comma lists; default: the whole suite)")
     parser.add_argument("--scenes", type=int, default=5, help="scenes per condition (default 5)")
     parser.add_argument("--size", type=_size, default=(1280, 960), help="image size WxH (default 1280x960)")
-    parser.add_argument("--grid", type=_size, default=(10, 5), help="grid COLSxROWS (default 10x5)")
+    parser.add_argument("--grid", type=_grid, default=(10, 5), help="grid COLSxROWS (default 10x5)")
     parser.add_argument("--seed", type=int, default=0, help="scene seed (default 0; same for every method)")
     parser.add_argument("--repeat", type=int, default=3, help="timed runs of each frame (default 3)")
     parser.add_argument("--slow-scenes", type=int, default=1,
@@ -163,9 +171,9 @@ def measure(*, conditions: list[str] | None = None, scenes: int = 5, size: tuple
                     if is_default:
                         for k, v in result.timings_ms.items():
                             stage_ms.setdefault(k, []).append(v)
-            ok = fn is not None
+            ok = fn is not None and len(frames) > 0
             out_rows.append({
-                "condition": cond, "method": label, "default": is_default, "frames": len(frames) if ok else 0,
+                "condition": cond, "method": label, "default": is_default, "frames": len(frames) if fn is not None else 0,
                 "precision": total.precision if ok else math.nan, "recall": total.recall if ok else math.nan,
                 "f1": total.f1 if ok else math.nan, "tp": total.tp, "fp": total.fp, "fn": total.fn, "tn": total.tn,
                 "median_ms": float(np.median(times)) if times else math.nan, "error": err,
