@@ -1,4 +1,4 @@
-"""``sbplan tui``: the operator's terminal app (Textual). Textual is imported only in ``run``."""
+"""``sbplan tui``: the operator's terminal app. Everything that imports Textual is in :mod:`sbplan.tui`."""
 
 from __future__ import annotations
 
@@ -28,11 +28,7 @@ def run(args: argparse.Namespace) -> int:
         raise MapFormatError(f"{args.map}: no such map folder")
     if not sys.stdout.isatty():
         raise InputError("tui: standard output is not a terminal; run 'sbplan tui' in a terminal")
-    # textual-image asks the terminal what it can draw; that must happen before Textual takes it over
-    import textual_image.widget as tiw
+    from ..tui.launch import launch
 
-    image_class = {"auto": tiw.Image, "halfcell": tiw.HalfcellImage, "unicode": tiw.UnicodeImage}[args.images]
-    from ..tui.app import SbplanApp
-
-    SbplanApp(args.map, auto=not args.no_auto, image_class=image_class).run()
+    launch(args.map, auto=not args.no_auto, images=args.images)
     return 0
