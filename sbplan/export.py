@@ -13,6 +13,7 @@ import cv2
 import numpy as np
 
 from .detection import Detection
+from .geometry import signed_area
 from .imageio import write_atomic, write_image
 
 _RED, _GREEN, _YELLOW, _CYAN, _WHITE, _BLACK = (40, 40, 230), (60, 200, 60), (0, 220, 255), (230, 200, 0), (255, 255, 255), (0, 0, 0)
@@ -75,8 +76,9 @@ def geojson(detection: Detection) -> dict:
     for ob in detection.obstacles:
         for kind, ring in (("outline", ob.outline_m), ("mar", ob.mar_m)):
             ring = np.asarray(ring, np.float64)
-            # RFC 7946: exterior rings counter-clockwise (in the y-up frame), first point repeated
-            if _signed_area(ring) < 0:
+            # RFC 7946: exterior rings counter-clockwise in the y-up world frame, which is clockwise
+            # in geometry.signed_area's y-down convention; first point repeated
+            if signed_area(ring) > 0:
                 ring = ring[::-1]
             coords = np.vstack([ring, ring[:1]]).round(6).tolist()
             features.append({
@@ -135,7 +137,3 @@ def write_nav2(folder: str | os.PathLike, detection: Detection, *, resolution: f
              f"occupied_thresh: {meta['occupied_thresh']}", f"free_thresh: {meta['free_thresh']}"]
     return write_atomic(folder / "map.yaml", "\n".join(lines) + "\n")
 
-
-def _signed_area(ring: np.ndarray) -> float:
-    x, y = ring[:, 0], ring[:, 1]
-    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))

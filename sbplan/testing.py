@@ -50,6 +50,7 @@ import pytest
 
 from . import plugins
 from .errors import InputError, PlanningError, PluginError
+from .geometry import signed_area
 from .model import FREEMAN_STEPS, Contour
 from .stages import (Binarizer, ContourApproximator, ContourExtractor, DescriptorMatcher, OccupancyMapper,
                      Planner, Stage)
@@ -290,14 +291,9 @@ def sample_outlines() -> dict[str, np.ndarray]:
 
 
 
-def _signed_area(p: np.ndarray) -> float:
-    """Shoelace with y down: negative = counter-clockwise as displayed."""
-    x, y = p[:, 0], p[:, 1]
-    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
-
 
 def _ccw(p: np.ndarray) -> np.ndarray:
-    return p if _signed_area(p) < 0 else p[::-1].copy()
+    return p if signed_area(p) > 0 else p[::-1].copy()
 
 
 def _mask_with(*rects: tuple[int, int, int, int], shape=(40, 50), holes=()) -> np.ndarray:
@@ -411,7 +407,7 @@ def check_extractor_rectangle(stage: ContourExtractor) -> None:
     assert set(map(tuple, pts.tolist())) == border and len(pts) == len(border), \
         f"extractor {stage.name!r}: the rectangle's contour is not exactly its {len(border)} border pixels"
     assert _closed_steps_ok(c), f"extractor {stage.name!r}: the contour is not a closed 8-connected chain"
-    assert _signed_area(pts.astype(float)) < 0, f"extractor {stage.name!r}: the outer contour is not counter-clockwise as displayed"
+    assert signed_area(pts) > 0, f"extractor {stage.name!r}: the outer contour is not counter-clockwise as displayed"
 
 
 def check_extractor_hole(stage: ContourExtractor) -> None:
@@ -425,7 +421,7 @@ def check_extractor_hole(stage: ContourExtractor) -> None:
     h = contours[holes[0]]
     assert h.orientation == -1, f"extractor {stage.name!r}: holes run clockwise (orientation -1)"
     assert h.parent == outer[0], f"extractor {stage.name!r}: the hole's parent is {h.parent}, expected {outer[0]}"
-    assert _closed_steps_ok(h) and _signed_area(h.points.astype(float)) > 0, \
+    assert _closed_steps_ok(h) and signed_area(h.points) < 0, \
         f"extractor {stage.name!r}: the hole is not a closed clockwise chain"
 
 
@@ -470,9 +466,9 @@ def check_approximator_rectangle(stage: ContourApproximator) -> None:
     poly = np.asarray(stage.approximate(c))
     assert poly.ndim == 2 and poly.shape[1] == 2 and len(poly) >= 3 and np.isfinite(poly).all(), \
         f"approximator {stage.name!r}: expected finite (M >= 3, 2) vertices, got shape {poly.shape}"
-    area = abs(_signed_area(poly))
+    area = abs(signed_area(poly))
     assert abs(area - 37 * 21) <= 0.1 * 37 * 21, f"approximator {stage.name!r}: area {area:.0f}, the contour's is {37 * 21}"
-    assert _signed_area(poly) < 0, f"approximator {stage.name!r}: the polygon does not keep the contour's traversal sense"
+    assert signed_area(poly) > 0, f"approximator {stage.name!r}: the polygon does not keep the contour's traversal sense"
 
 
 def check_approximator_near_contour(stage: ContourApproximator, *, seeds=(1, 2)) -> None:
@@ -490,7 +486,7 @@ def check_approximator_near_contour(stage: ContourApproximator, *, seeds=(1, 2))
             ring = LineString(np.vstack([c.points, c.points[:1]]).astype(float))
             far = max(ring.distance(Point(v)) for v in poly)
             assert far <= 2.0, f"approximator {stage.name!r}: a vertex lies {far:.1f} px from the contour"
-            a0, a1 = abs(_signed_area(c.points.astype(float))), abs(_signed_area(poly))
+            a0, a1 = abs(signed_area(c.points)), abs(signed_area(poly))
             if a0 >= 200:
                 assert abs(a1 - a0) <= 0.15 * a0, f"approximator {stage.name!r}: polygon area {a1:.0f} vs contour {a0:.0f}"
 

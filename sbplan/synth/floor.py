@@ -14,6 +14,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from ..errors import ContourError, SceneError
+from ..geometry import signed_area
 from ..model import as_points
 
 #: The default floor symbol: asymmetric (no rotational or mirror symmetry), straight pieces, no holes,
@@ -78,16 +79,11 @@ def symbol_outline(symbol: str | Any) -> list[np.ndarray]:
     for i, a in enumerate(arrs):
         if np.allclose(a[0], a[-1]):
             a = a[:-1]
-        want_negative = i == 0  # outline CCW as displayed = negative shoelace with y down
-        if (_signed_area(a) < 0) != want_negative:
+        want_ccw = i == 0  # the outline counter-clockwise as displayed, holes clockwise
+        if (signed_area(a) > 0) != want_ccw:
             a = a[::-1]
         out.append(np.ascontiguousarray(a, dtype=np.float64))
     return out
-
-
-def _signed_area(a: np.ndarray) -> float:
-    x, y = a[:, 0], a[:, 1]
-    return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
 
 
 def rings_centroid(rings: Sequence[np.ndarray]) -> tuple[np.ndarray, float]:
