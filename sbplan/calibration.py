@@ -281,7 +281,9 @@ def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str 
     points_range = (12, max(16, (h + w) // 2))
     kw = dict(extractor=chosen["extractor"], approximator=chosen["approximator"], matcher=chosen["matcher"])
     shapes = extract_shapes(gray, binarizer=chosen["binarizer"], points_range=points_range, **kw)
-    members = _symbol_members(shapes, chosen["matcher"], symbol=symbol, chosen=chosen)
+    given = None if symbol is None else _symbol_descriptor_from_image(
+        symbol, extractor=chosen["extractor"], approximator=chosen["approximator"], matcher=chosen["matcher"])
+    members = _symbol_members(shapes, chosen["matcher"], ref=given)
     # Fit the binarizer to the symbol size found and run again: a window of a few symbol sizes
     # follows the light without swallowing the symbol itself.
     fit = getattr(chosen["binarizer"], "with_symbol_size", None)
@@ -291,7 +293,7 @@ def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str 
         if refit != chosen["binarizer"]:
             chosen["binarizer"] = refit
             shapes = extract_shapes(gray, binarizer=refit, points_range=points_range, **kw)
-            members = _symbol_members(shapes, chosen["matcher"], symbol=symbol, chosen=chosen)
+            members = _symbol_members(shapes, chosen["matcher"], ref=given)
     reference_descriptor = np.median(shapes.descriptors[members], axis=0)
     dist = chosen["matcher"].distance_matrix(shapes.descriptors, reference_descriptor[None, :])[:, 0]
     grid = fit_grid(shapes.centres[members])
@@ -425,14 +427,13 @@ def _degraded_symbols(gray: np.ndarray, grid: Grid, descriptor: np.ndarray, cell
     return np.concatenate(distances), np.concatenate(deviations), polygons
 
 
-def _symbol_members(shapes: Shapes, matcher, *, symbol: Any, chosen: dict) -> np.ndarray:
-    """Indices of the shapes that are the reference symbol."""
+def _symbol_members(shapes: Shapes, matcher, *, ref: np.ndarray | None) -> np.ndarray:
+    """Indices of the shapes that are the reference symbol: those near ``ref`` (the descriptor of a
+    given symbol image) or, without one, the dominant repeated shape."""
     n = len(shapes.polygons)
     if n == 0:
         raise CalibrationError("no symbols found in the reference image (no dark shapes of symbol size)")
-    if symbol is not None:
-        ref = _symbol_descriptor_from_image(symbol, extractor=chosen["extractor"],
-                                            approximator=chosen["approximator"], matcher=matcher)
+    if ref is not None:
         d = matcher.distance_matrix(shapes.descriptors, ref[None, :])[:, 0]
         near = d < getattr(matcher, "default_threshold", 0.5)
         if not near.any():
