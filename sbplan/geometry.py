@@ -16,6 +16,7 @@ coordinates, and of ``cv2.contourArea(..., oriented=True)``.
 
 from __future__ import annotations
 
+import collections.abc
 from typing import Sequence
 
 import numpy as np
@@ -24,6 +25,7 @@ from .errors import ContourError, InputError
 from .model import Contour, as_points
 
 __all__ = [
+    "PolygonBatch",
     "signed_area", "signed_areas", "perimeter", "perimeters", "centroid", "centroids",
     "resample_closed", "resample_many", "resample_xy", "chain_length", "contour_length", "length_filter",
     "pack",
@@ -33,6 +35,63 @@ _SQRT2 = float(np.sqrt(2.0))
 
 
 # -- packing many outlines into one array ------------------------------------------------------
+
+class PolygonBatch(collections.abc.Sequence):
+    """Many closed outlines stored back to back, which :func:`pack` takes without copying.
+
+    Stages that make many polygons at once (an approximator's ``approximate_many``) return one, so
+    that every later vectorized step (descriptors, areas, centres, resampling) skips the
+    concatenation and validation of the outlines. It is a read-only sequence of ``(N_i, 2)``
+    float64 views, so code that iterates over polygons takes it unchanged.
+
+    Parameters
+    ----------
+    points : ndarray of shape (sum N_i, 2), float64
+        Finite vertices ``(x, y)``, outline ``k`` at ``points[starts[k]:starts[k] + counts[k]]``.
+    counts : ndarray of shape (m,), int64
+        N_i, each >= 3.
+    """
+
+    __slots__ = ("points", "starts", "counts")
+
+    def __init__(self, points: np.ndarray, counts: np.ndarray):
+        counts = np.asarray(counts, dtype=np.int64)
+        points = np.asarray(points, dtype=np.float64)
+        if points.ndim != 2 or points.shape[1] != 2 or int(counts.sum()) != len(points):
+            raise ContourError(f"PolygonBatch: {len(points)} points do not split into outlines of {counts.tolist()}")
+        if len(counts) and (counts.min() < 3 or not np.isfinite(points).all()):
+            raise ContourError("PolygonBatch: every outline needs at least 3 finite points")
+        self.points = points
+        self.counts = counts
+        self.starts = np.zeros(len(counts), np.int64)
+        np.cumsum(counts[:-1], out=self.starts[1:])
+
+    @classmethod
+    def from_list(cls, polygons: Sequence[np.ndarray]) -> "PolygonBatch":
+        """Pack a list of ``(N_i, 2)`` outlines (validated as :func:`pack` does)."""
+        points, _, counts = pack(polygons)
+        return cls(points, counts)
+
+    def __len__(self) -> int:
+        return len(self.counts)
+
+    def __getitem__(self, i):
+        if isinstance(i, slice):
+            return self.take(np.arange(len(self))[i])
+        s = int(self.starts[i])
+        return self.points[s:s + int(self.counts[i])]
+
+    def take(self, indices) -> "PolygonBatch":
+        """The outlines at ``indices`` (int array or bool mask), in that order, as a new batch."""
+        idx = np.arange(len(self))[np.asarray(indices)] if np.asarray(indices).dtype == bool \
+            else np.asarray(indices, dtype=np.int64)
+        counts = self.counts[idx]
+        if not len(counts):
+            return PolygonBatch(np.zeros((0, 2)), counts)
+        # index of every kept point: each outline's start, then 0, 1, 2, ... within it
+        offsets = np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
+        return PolygonBatch(self.points[np.repeat(self.starts[idx], counts) + offsets], counts)
+
 
 def pack(polygons: Sequence[np.ndarray], *, name: str = "polygons", min_points: int = 3):
     """Concatenate many outlines into one array for vectorized work.
@@ -55,6 +114,8 @@ def pack(polygons: Sequence[np.ndarray], *, name: str = "polygons", min_points: 
     ContourError
         Naming the first bad outline (wrong shape, too few points, NaN or infinite values).
     """
+    if isinstance(polygons, PolygonBatch) and min_points <= 3:
+        return polygons.points, polygons.starts, polygons.counts
     m = len(polygons)
     if m == 0:
         return np.zeros((0, 2)), np.zeros(0, np.int64), np.zeros(0, np.int64)

@@ -14,6 +14,7 @@ distortion (which no homography models) does not move a symbol into the wrong ce
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import cv2
@@ -52,7 +53,12 @@ class Grid:
     def px_to_lattice(self, xy: np.ndarray) -> np.ndarray:
         """Map pixels ``(x, y)`` (N, 2) to fractional lattice coordinates ``(col, row)`` (N, 2)."""
         pts = np.asarray(xy, dtype=np.float64).reshape(-1, 1, 2)
-        return cv2.perspectiveTransform(pts, np.linalg.inv(self.homography)).reshape(-1, 2)
+        return cv2.perspectiveTransform(pts, self._inverse_homography).reshape(-1, 2)
+
+    @functools.cached_property
+    def _inverse_homography(self) -> np.ndarray:
+        # detection maps every frame's symbol centres through it
+        return np.linalg.inv(self.homography)
 
     def assign(self, xy: np.ndarray) -> np.ndarray:
         """The cell ``(row, col)`` each point belongs to, or ``(-1, -1)``.

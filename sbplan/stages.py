@@ -29,6 +29,9 @@ import numpy as np
 from .errors import InputError
 from .model import Contour
 
+if typing.TYPE_CHECKING:
+    from .bands import RowBands
+
 #: The stage kinds, in pipeline order.
 KINDS = ("binarizer", "extractor", "approximator", "matcher", "mapper", "planner")
 
@@ -129,6 +132,28 @@ class Binarizer(Stage):
             True where the printed symbols' ink (the dark foreground) is.
         """
 
+    def binarize_bands(self, gray: np.ndarray, bands: RowBands) -> np.ndarray:
+        """The foreground mask of the row bands only, stacked (:meth:`sbplan.bands.RowBands.stack`).
+
+        Detection calls this when the symbols fill only part of the frame's rows. The default
+        binarizes the whole image and stacks the bands, which gives the same mask as
+        :meth:`binarize` but saves nothing; a binarizer whose per-pixel work can be limited to the
+        bands overrides it, still looking at the whole image for anything it estimates from
+        context (a floor level, a global threshold).
+
+        Parameters
+        ----------
+        gray : ndarray of shape (H, W), uint8
+        bands : RowBands
+            For an image of shape (H, W).
+
+        Returns
+        -------
+        ndarray of shape ``bands.stacked_shape``, bool
+            Separator rows are False.
+        """
+        return bands.stack(self.binarize(gray), fill=False)
+
 
 class ContourExtractor(Stage):
     """Finds every closed boundary (outer boundaries and holes) of a binary image."""
@@ -151,6 +176,15 @@ class ContourExtractor(Stage):
             clockwise (``orientation=-1``).
         """
 
+    def extract_outer(self, binary: np.ndarray) -> list[Contour]:
+        """Only the outer boundaries (``is_hole`` False), in :meth:`extract`'s order.
+
+        Detection matches outer boundaries only, so this is what its hot path calls. The default
+        filters :meth:`extract`; an extractor that can skip holes more cheaply overrides it. The
+        ``parent`` of the returned contours is not meaningful (it may be -1).
+        """
+        return [c for c in self.extract(binary) if not c.is_hole]
+
 
 class ContourApproximator(Stage):
     """Approximates a pixel contour by a polygon."""
@@ -161,6 +195,11 @@ class ContourApproximator(Stage):
     def approximate(self, contour: Contour) -> np.ndarray:
         """Return the polygon's vertices, shape (M, 2) float64 ``(x, y)``, M >= 3 when possible,
         in the contour's traversal order, not closed (first vertex not repeated)."""
+
+    def approximate_many(self, contours: Sequence[Contour]) -> list[np.ndarray]:
+        """:meth:`approximate` of every contour, in order. Detection calls this once per frame;
+        override it when a batch is cheaper than one call per contour."""
+        return [self.approximate(c) for c in contours]
 
 
 class DescriptorMatcher(Stage):

@@ -383,6 +383,33 @@ def check_binarizer_finds_ink(stage: Binarizer) -> None:
     assert out[bare].mean() < 0.05, f"binarizer {stage.name!r}: {out[bare].mean():.0%} of the bare floor is foreground"
 
 
+def check_binarizer_bands(stage: Binarizer) -> None:
+    """``binarize_bands`` gives the stacked mask of the bands: what ``binarize`` finds in them,
+    away from the band edges (where a filter may see the band's end instead of the next rows),
+    and nothing in the separator rows."""
+    from .bands import RowBands
+
+    floor = make_tiny_floor()
+    gray = np.array(floor.reference)
+    h = gray.shape[0]
+    bands = RowBands([(10, h // 2 - 10), (h // 2 + 4, h - 6)], gray.shape)
+    out = stage.binarize_bands(gray, bands)
+    assert isinstance(out, np.ndarray) and out.dtype == bool and out.shape == bands.stacked_shape, \
+        f"binarizer {stage.name!r}: binarize_bands gave {getattr(out, 'dtype', type(out))} " \
+        f"{getattr(out, 'shape', '')}, expected bool {bands.stacked_shape}"
+    whole = bands.stack(stage.binarize(gray), fill=False)
+    inner = np.zeros(bands.stacked_shape[0], bool)
+    for a, b, o in zip(bands.starts.tolist(), bands.stops.tolist(), bands.offsets.tolist()):
+        inner[o + 8:o + b - a - 8] = True
+    separators = np.ones(bands.stacked_shape[0], bool)
+    for a, b, o in zip(bands.starts.tolist(), bands.stops.tolist(), bands.offsets.tolist()):
+        separators[o:o + b - a] = False
+    assert not out[separators].any(), f"binarizer {stage.name!r}: binarize_bands put ink in the separator rows"
+    differ = float((out[inner] != whole[inner]).mean())
+    assert differ == 0.0, f"binarizer {stage.name!r}: binarize_bands differs from binarize on {differ:.1%} of the band pixels"
+    assert np.array_equal(gray, floor.reference), f"binarizer {stage.name!r}: modified its input"
+
+
 # extractor
 
 def _closed_steps_ok(c: Contour) -> bool:
@@ -458,7 +485,34 @@ def check_extractor_empty(stage: ContourExtractor) -> None:
     assert list(stage.extract(np.zeros((20, 30), bool))) == [], f"extractor {stage.name!r}: contours in an empty mask"
 
 
+def check_extractor_outer(stage: ContourExtractor, *, seeds=(1, 2, 3)) -> None:
+    """``extract_outer`` gives the outer contours of ``extract``, same points, same order."""
+    for seed in seeds:
+        mask = _random_mask(seed)
+        expected = [c for c in stage.extract(mask) if not c.is_hole]
+        got = stage.extract_outer(mask)
+        assert len(got) == len(expected), \
+            f"extractor {stage.name!r}: mask seed {seed}: extract_outer gave {len(got)} contours, extract {len(expected)} outer ones"
+        for i, (g, e) in enumerate(zip(got, expected)):
+            assert not g.is_hole and np.array_equal(np.asarray(g.points), np.asarray(e.points)), \
+                f"extractor {stage.name!r}: mask seed {seed}: extract_outer's contour {i} differs from extract's"
+
+
 # approximator
+
+def check_approximator_many(stage: ContourApproximator, *, seed: int = 2) -> None:
+    """``approximate_many`` gives what ``approximate`` gives for each contour, in order."""
+    ext = plugins.extractor("opencv")
+    contours = [c for c in ext.extract(_random_mask(seed)) if len(c.points) >= 8][:12]
+    contours.append(_rect_contour(3, 4, 40, 25))
+    many = stage.approximate_many(contours)
+    assert len(many) == len(contours), f"approximator {stage.name!r}: approximate_many gave {len(many)} polygons for {len(contours)} contours"
+    for i, (c, poly) in enumerate(zip(contours, many)):
+        one = np.asarray(stage.approximate(c), float)
+        assert np.allclose(np.asarray(poly, float), one), \
+            f"approximator {stage.name!r}: approximate_many's polygon {i} differs from approximate's"
+    assert len(stage.approximate_many([])) == 0, f"approximator {stage.name!r}: approximate_many([]) is not empty"
+
 
 def check_approximator_rectangle(stage: ContourApproximator) -> None:
     """A rectangle's contour becomes a polygon of about its area, in the same traversal sense."""
@@ -643,9 +697,10 @@ def check_planner_rejects_bad_start(stage: Planner, *, time_limit: float = 0.5) 
 
 
 CHECKS: dict[str, tuple[Callable[[Any], None], ...]] = {
-    "binarizer": (check_binarizer_output, check_binarizer_finds_ink),
-    "extractor": (check_extractor_rectangle, check_extractor_hole, check_extractor_counts, check_extractor_empty),
-    "approximator": (check_approximator_rectangle, check_approximator_near_contour),
+    "binarizer": (check_binarizer_output, check_binarizer_finds_ink, check_binarizer_bands),
+    "extractor": (check_extractor_rectangle, check_extractor_hole, check_extractor_counts, check_extractor_empty,
+                  check_extractor_outer),
+    "approximator": (check_approximator_rectangle, check_approximator_near_contour, check_approximator_many),
     "matcher": (check_matcher_descriptors, check_matcher_distances, check_matcher_invariance, check_matcher_discriminates),
     "mapper": (check_mapper,),
     "planner": (check_planner_route, check_planner_rejects_bad_start),
@@ -703,6 +758,9 @@ class BinarizerContract(StageContract):
     def test_finds_ink(self, stage):
         check_binarizer_finds_ink(stage)
 
+    def test_bands(self, stage):
+        check_binarizer_bands(stage)
+
 
 class ExtractorContract(StageContract):
     kind = "extractor"
@@ -719,6 +777,9 @@ class ExtractorContract(StageContract):
     def test_empty(self, stage):
         check_extractor_empty(stage)
 
+    def test_outer(self, stage):
+        check_extractor_outer(stage)
+
 
 class ApproximatorContract(StageContract):
     kind = "approximator"
@@ -728,6 +789,9 @@ class ApproximatorContract(StageContract):
 
     def test_near_contour(self, stage):
         check_approximator_near_contour(stage)
+
+    def test_many(self, stage):
+        check_approximator_many(stage)
 
 
 class MatcherContract(StageContract):

@@ -105,3 +105,30 @@ def test_length_filter_on_lengths_and_contours():
         g.length_filter([1.0], min_length=5, max_length=2)
     with pytest.raises(InputError, match="min_length"):
         g.length_filter([1.0], min_length=-1)
+
+
+def test_polygon_batch_is_a_sequence_that_pack_takes_as_is():
+    from sbplan.geometry import PolygonBatch, centroids, pack, resample_xy
+
+    rng = np.random.default_rng(4)
+    polys = [rng.random((n, 2)) * 50 for n in (3, 7, 4)]
+    batch = PolygonBatch.from_list(polys)
+    assert len(batch) == 3 and all(np.array_equal(a, b) for a, b in zip(batch, polys))
+    points, starts, counts = pack(batch)
+    assert points is batch.points and starts.tolist() == [0, 3, 10] and counts.tolist() == [3, 7, 4]
+    assert np.array_equal(g.signed_areas(batch), g.signed_areas(polys))
+    assert np.allclose(centroids(batch), centroids(polys))
+    assert all(np.array_equal(a, b) for a, b in zip(resample_xy(batch, 16), resample_xy(polys, 16)))
+    picked = batch.take([2, 0])
+    assert [len(p) for p in picked] == [4, 3] and np.array_equal(picked[0], polys[2])
+    assert len(batch.take(np.array([False, True, False]))) == 1 and len(batch.take([])) == 0
+    assert np.array_equal(batch[1:][0], polys[1])
+
+
+@pytest.mark.parametrize("points, counts", [(np.zeros((5, 2)), [2, 3]), (np.zeros((5, 2)), [3, 3]),
+                                            (np.full((3, 2), np.nan), [3])])
+def test_polygon_batch_refuses_bad_outlines(points, counts):
+    from sbplan.geometry import PolygonBatch
+
+    with pytest.raises(ContourError, match="PolygonBatch"):
+        PolygonBatch(points, counts)

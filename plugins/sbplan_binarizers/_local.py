@@ -59,23 +59,86 @@ class LocalThresholdBinarizer(Binarizer):
         raise NotImplementedError
 
     def binarize(self, gray: np.ndarray) -> np.ndarray:
-        gray = as_gray(gray, name="gray")
+        gray, thr, f = self._threshold(gray)
+        return self._open(_below(gray, thr, f)).view(bool)
+
+    def binarize_bands(self, gray: np.ndarray, bands) -> np.ndarray:
+        """:meth:`binarize` limited to the row bands: the local level is estimated on the whole
+        (reduced) image as always, the comparison and the opening run on the bands only."""
+        gray, thr, f = self._threshold(gray)
         h, w = gray.shape
+        if bands.shape != (h, w):
+            raise InputError(f"bands: made for {bands.shape[1]}x{bands.shape[0]}, the image is {w}x{h}")
+        if f not in _REPEAT or h != f * thr.shape[0] or w != f * thr.shape[1] or (bands.starts % f).any():
+            return self._open(bands.stack(_below(gray, thr, f))).view(bool)
+        wide_type, repeat = _REPEAT[f]
+        wide = (thr.astype(wide_type) * repeat).view(np.uint8)
+        out = np.zeros(bands.stacked_shape, np.uint8)
+        for a, b, o in zip(bands.starts.tolist(), bands.stops.tolist(), bands.offsets.tolist()):
+            for phase in range(f):
+                src = gray[a + phase:b:f]
+                cv2.compare(src, wide[a // f:a // f + len(src)], cv2.CMP_LT, dst=out[o + phase:o + b - a:f])
+        return self._open(cv2.threshold(out, 0, 1, cv2.THRESH_BINARY)[1]).view(bool)
+
+    def _threshold(self, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+        """The validated image, the threshold on the reduced image, and the reduction factor."""
+        gray = as_gray(gray, name="gray")
         window = self.window or 31
         # The local level varies slowly: computing it on a reduced image and enlarging it again
         # costs a fraction of the full-size filter.
         f = max(1, min(self.downscale, window // 5))
-        small = cv2.resize(gray, (max(1, w // f), max(1, h // f)), interpolation=cv2.INTER_AREA) if f > 1 else gray
+        small = _reduce(gray, f)
         level = self.local_level(small, max(3, int(round(window / f))))
         thr = np.minimum(cv2.convertScaleAbs(level, alpha=1.0 - self.offset), cv2.subtract(level, self.min_contrast))
-        if f > 1:
-            # Nearest-neighbour enlargement: the threshold changes by a grey level or two between
-            # neighbouring reduced pixels, and this is a quarter of the hot path's cost cheaper.
-            thr = cv2.resize(thr, (w, h), interpolation=cv2.INTER_NEAREST)
-        ink = (gray < thr).view(np.uint8)
+        return gray, thr, f
+
+    def _open(self, ink: np.ndarray) -> np.ndarray:
         opening = 3 if self.opening == -1 else self.opening
         if opening > 1:
             # Shadow rims and texture lines are thin dark streaks; where one touches a symbol it
             # welds onto the symbol's outline. An opening removes streaks thinner than the square.
             ink = cv2.morphologyEx(ink, cv2.MORPH_OPEN, cv2.getStructuringElement(cv2.MORPH_RECT, (opening, opening)))
-        return ink.view(bool)
+        return ink
+
+
+def _reduce(gray: np.ndarray, f: int) -> np.ndarray:
+    """``gray`` made ``f`` times smaller by area averaging. A factor of 4 is done as two halvings:
+    OpenCV's direct 4x area reduction is ten times slower than its 2x one."""
+    h, w = gray.shape
+    if f == 1:
+        return gray
+    if f == 4 and h % 4 == 0 and w % 4 == 0:
+        half = cv2.resize(gray, (w // 2, h // 2), interpolation=cv2.INTER_AREA)
+        return cv2.resize(half, (w // 4, h // 4), interpolation=cv2.INTER_AREA)
+    return cv2.resize(gray, (max(1, w // f), max(1, h // f)), interpolation=cv2.INTER_AREA)
+
+
+#: f -> (integer type, multiplier) that repeats a uint8 f times within one wider integer
+_REPEAT = {2: (np.uint16, 0x0101), 4: (np.uint32, 0x01010101)}
+
+
+def _below(gray: np.ndarray, thr: np.ndarray, f: int) -> np.ndarray:
+    """``gray < thr`` with ``thr`` enlarged ``f`` times by nearest neighbour: a 0/1 uint8 image of
+    gray's shape.
+
+    Nearest neighbour, because the threshold changes by a grey level or two between neighbouring
+    reduced pixels, so interpolating would buy nothing. For ``f`` of 2 or 4 the threshold is never
+    enlarged as an image: its columns are repeated by
+    one integer multiply (each byte ``f`` times) and each of the ``f`` row phases of ``gray`` is
+    compared with that in place. That is several times cheaper than ``cv2.resize(...,
+    INTER_NEAREST)`` on a camera frame (0.08 ms against 0.5 ms at 1280x960, one core). Other
+    factors, and sizes that are not multiples, take the plain route.
+    """
+    h, w = gray.shape
+    if f == 1:
+        return (gray < thr).view(np.uint8)
+    if f in _REPEAT and h == f * thr.shape[0] and w == f * thr.shape[1]:
+        wide_type, repeat = _REPEAT[f]
+        wide = (thr.astype(wide_type) * repeat).view(np.uint8)
+        out = np.empty((h, w), np.uint8)
+        for phase in range(f):
+            cv2.compare(gray[phase::f], wide, cv2.CMP_LT, dst=out[phase::f])
+        # compare gives 0/255; the contract is 0/1 viewed as bool
+        return cv2.threshold(out, 0, 1, cv2.THRESH_BINARY)[1]
+    big = cv2.resize(thr, (w, h), interpolation=cv2.INTER_NEAREST)
+    return (gray < big).view(np.uint8)

@@ -44,6 +44,24 @@ class OpenCVExtractor(BoundaryExtractor):
         """
         return find_contours_opencv(binary, chains=self.chains)
 
+    def extract_outer(self, binary: np.ndarray) -> list[Contour]:
+        """Only the outer boundaries, as :meth:`extract` gives them (same points, same order of
+        traversal), with ``parent`` -1.
+
+        ``RETR_CCOMP`` puts every outer boundary, islands inside holes included, on the top level
+        of its two-level hierarchy, so no nesting depth is needed and no hole is converted.
+        """
+        mask = as_mask(binary, name="binary")
+        found, hierarchy = cv2.findContours(mask, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE)
+        if not found:
+            return []
+        keep = np.flatnonzero(hierarchy[0, :, 3] < 0).tolist()
+        found = [found[i] for i in keep]
+        lengths = np.fromiter(map(len, found), dtype=np.int64, count=len(found))
+        points = np.concatenate(found).reshape(-1, 2).astype(np.int64)
+        n = len(found)
+        return build_contours(points, lengths, np.zeros(n, bool), np.full(n, -1), chains=self.chains)
+
 
 def find_contours_opencv(binary: np.ndarray, *, chains: bool = True) -> list[Contour]:
     """Functional form of :class:`OpenCVExtractor` (same parameters and result)."""
