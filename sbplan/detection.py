@@ -226,11 +226,10 @@ class Detector:
             lap("describe")
             hit = np.flatnonzero(d < self.threshold)
             if len(hit):
-                hit_polygons = polygons.take(hit)
-                centres = centroids(hit_polygons, on_zero_area="nan").reshape(-1, 2)
+                hit_polygons = polygons if len(hit) == len(polygons) else polygons.take(hit)
+                centres, areas = centroids(hit_polygons, on_zero_area="nan", return_areas=True)
                 if self.bands is not None:
                     centres = self.bands.to_full(centres)
-                areas = np.abs(signed_areas(hit_polygons))
                 cells = cal.grid.assign(centres)
                 ok = cells[:, 0] >= 0
                 # A fixed camera sees each cell's symbol at one size. Light and focus scale every
@@ -243,7 +242,8 @@ class Detector:
                 # more than light and focus make it is partly hidden.
                 if ok.any():
                     idx = np.flatnonzero(ok)
-                    deviation = outline_deviation(hit_polygons.take(idx), self._band_distance_map)
+                    checked = hit_polygons if len(idx) == len(hit) else hit_polygons.take(idx)
+                    deviation = outline_deviation(checked, self._band_distance_map)
                     ok[idx[deviation > cal.outline_tolerance_px]] = False
                 found[cells[ok, 0], cells[ok, 1]] = True
                 matched, candidates = centres[ok], centres[~ok]

@@ -52,7 +52,7 @@ class PolygonBatch(collections.abc.Sequence):
         N_i, each >= 3.
     """
 
-    __slots__ = ("points", "starts", "counts")
+    __slots__ = ("points", "starts", "counts", "_resampled")
 
     def __init__(self, points: np.ndarray, counts: np.ndarray):
         counts = np.asarray(counts, dtype=np.int64)
@@ -65,6 +65,9 @@ class PolygonBatch(collections.abc.Sequence):
         self.counts = counts
         self.starts = np.zeros(len(counts), np.int64)
         np.cumsum(counts[:-1], out=self.starts[1:])
+        # n -> (x, y) of resample_xy(self, n): the descriptors and the outline check of one frame
+        # resample the same outlines, the check at half the descriptors' rate
+        self._resampled: dict[int, tuple[np.ndarray, np.ndarray]] = {}
 
     @classmethod
     def from_list(cls, polygons: Sequence[np.ndarray]) -> "PolygonBatch":
@@ -90,7 +93,23 @@ class PolygonBatch(collections.abc.Sequence):
             return PolygonBatch(np.zeros((0, 2)), counts)
         # index of every kept point: each outline's start, then 0, 1, 2, ... within it
         offsets = np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
-        return PolygonBatch(self.points[np.repeat(self.starts[idx], counts) + offsets], counts)
+        out = PolygonBatch(self.points[np.repeat(self.starts[idx], counts) + offsets], counts)
+        for n, (x, y) in self._resampled.items():
+            out._resampled[n] = (_read_only(x[idx]), _read_only(y[idx]))
+        return out
+
+    def _cached_resample(self, n: int) -> tuple[np.ndarray, np.ndarray] | None:
+        for have, (x, y) in self._resampled.items():
+            if have % n == 0:
+                # sample j of n lies at arc length j/n, which is sample j * have/n of have
+                k = have // n
+                return (x, y) if k == 1 else (x[:, ::k], y[:, ::k])
+        return None
+
+
+def _read_only(a: np.ndarray) -> np.ndarray:
+    a.flags.writeable = False
+    return a
 
 
 def pack(polygons: Sequence[np.ndarray], *, name: str = "polygons", min_points: int = 3):
@@ -309,7 +328,7 @@ def centroid(points) -> tuple[float, float]:
     return float(fx.sum() / area + origin[0]), float(fy.sum() / (2.0 * area) + origin[1])
 
 
-def centroids(polygons: Sequence[np.ndarray], *, on_zero_area: str = "raise") -> np.ndarray:
+def centroids(polygons: Sequence[np.ndarray], *, on_zero_area: str = "raise", return_areas: bool = False):
     """:func:`centroid` of many polygons at once.
 
     Parameters
@@ -317,16 +336,20 @@ def centroids(polygons: Sequence[np.ndarray], *, on_zero_area: str = "raise") ->
     polygons : sequence of array_like of shape (N_i, 2)
     on_zero_area : {"raise", "nan"}
         What to do for a polygon that encloses no area: raise ContourError naming it, or give NaN.
+    return_areas : bool
+        Also return the enclosed areas, which equation (1) computes on the way.
 
     Returns
     -------
-    ndarray of shape (m, 2), float64, columns ``(x, y)``.
+    centres : ndarray of shape (m, 2), float64, columns ``(x, y)``.
+    areas : ndarray of shape (m,), float64
+        Only with ``return_areas``: the unsigned areas (``abs(signed_areas(polygons))``).
     """
     if on_zero_area not in ("raise", "nan"):
         raise InputError(f"on_zero_area must be 'raise' or 'nan', got {on_zero_area!r}")
     pts, starts, counts = pack(polygons)
     if len(starts) == 0:
-        return np.zeros((0, 2))
+        return (np.zeros((0, 2)), np.zeros(0)) if return_areas else np.zeros((0, 2))
     sums = np.add.reduceat(pts, starts, axis=0)
     origin = sums / counts[:, None]
     p = pts - np.repeat(origin, counts, axis=0)
@@ -341,7 +364,7 @@ def centroids(polygons: Sequence[np.ndarray], *, on_zero_area: str = "raise") ->
         out = np.stack([np.add.reduceat(fx, starts) / area,
                         np.add.reduceat(fy, starts) / (2.0 * area)], axis=1) + origin
     out[bad] = np.nan
-    return out
+    return (out, np.abs(area)) if return_areas else out
 
 
 # -- arc-length resampling -----------------------------------------------------------------------
@@ -375,9 +398,21 @@ def resample_many(polygons: Sequence[np.ndarray], n: int) -> np.ndarray:
 def resample_xy(polygons: Sequence[np.ndarray], n: int) -> tuple[np.ndarray, np.ndarray]:
     """:func:`resample_many` returning the x and y coordinates as two arrays of shape (m, n).
 
-    The descriptors use this form directly (it saves a gather of point pairs).
+    The descriptors use this form directly (it saves a gather of point pairs). For a
+    :class:`PolygonBatch` the result is remembered with the batch (and the batches its ``take``
+    makes) and read-only: a later call for ``n`` or a divisor of it costs nothing.
     """
     n = _check_samples(n)
+    if isinstance(polygons, PolygonBatch):
+        cached = polygons._cached_resample(n)
+        if cached is None:
+            cached = tuple(_read_only(a) for a in _resample_xy(polygons, n))
+            polygons._resampled[n] = cached
+        return cached
+    return _resample_xy(polygons, n)
+
+
+def _resample_xy(polygons: Sequence[np.ndarray], n: int) -> tuple[np.ndarray, np.ndarray]:
     pts, starts, counts = pack(polygons)
     m = len(starts)
     if m == 0:

@@ -26,9 +26,11 @@ class Contour:
 
     Attributes
     ----------
-    points : ndarray of shape (N, 2), int64
+    points : ndarray of shape (N, 2), integer
         The boundary pixels ``(x, y)`` in traversal order; the contour closes from the last point
-        back to the first (the first point is not repeated).
+        back to the first (the first point is not repeated). int64 from the extractors'
+        ``extract``; ``extract_outer``, on detection's hot path, may hand out OpenCV's own int32
+        arrays instead of converting them.
     is_hole : bool
         False for the outer boundary of a foreground (True) region, True for the boundary of a
         hole inside one.

@@ -60,22 +60,21 @@ class DouglasPeucker(ContourApproximator):
     def approximate_many(self, contours) -> PolygonBatch:
         """:meth:`approximate` of many contours, as one :class:`~sbplan.geometry.PolygonBatch`.
 
-        For :class:`~sbplan.model.Contour` input with a fixed tolerance, all contours are converted
-        to OpenCV's integer points at once and the per-contour validation is skipped (the
-        extractor's pixels are valid by construction): that is most of a small contour's cost.
+        For :class:`~sbplan.model.Contour` input with a fixed tolerance, the per-contour validation
+        and float conversion are skipped (the extractor's pixels are valid by construction): that
+        is most of a small contour's cost.
         """
-        if self.relative > 0 or not all(isinstance(c, Contour) and len(c.points) >= 3 for c in contours):
-            return PolygonBatch.from_list([self.approximate(c) for c in contours])
         if not contours:
             return PolygonBatch(np.zeros((0, 2)), np.zeros(0, np.int64))
-        points = np.concatenate([c.points for c in contours]).astype(np.int32)
-        ends = np.cumsum([len(c.points) for c in contours]).tolist()
         eps = float(self.epsilon)
-        out, begin = [], 0
-        for end in ends:
-            # integer input gives the same vertices as float32 input: DP only picks input points
-            poly = cv2.approxPolyDP(points[begin:end], eps, True).reshape(-1, 2)
-            out.append(poly if len(poly) >= 3 else three_vertices(points[begin:end]))
-            begin = end
+        out = []
+        for c in contours:
+            if self.relative > 0 or not isinstance(c, Contour) or len(c.points) < 3:
+                return PolygonBatch.from_list([self.approximate(c) for c in contours])
+            # OpenCV's int32 points as they come (or one conversion); integer input gives the same
+            # vertices as float32 input, since DP only picks input points
+            pts = c.points if c.points.dtype == np.int32 else c.points.astype(np.int32)
+            poly = cv2.approxPolyDP(pts, eps, True).reshape(-1, 2)
+            out.append(poly if len(poly) >= 3 else three_vertices(pts))
         counts = np.fromiter(map(len, out), np.int64, len(out))
         return PolygonBatch(np.concatenate(out).astype(np.float64), counts)

@@ -65,32 +65,40 @@ class LocalThresholdBinarizer(Binarizer):
     def binarize_bands(self, gray: np.ndarray, bands) -> np.ndarray:
         """:meth:`binarize` limited to the row bands: the local level is estimated on the whole
         (reduced) image as always, the comparison and the opening run on the bands only."""
-        gray, thr, f = self._threshold(gray)
+        gray = as_gray(gray, name="gray")
         h, w = gray.shape
         if bands.shape != (h, w):
             raise InputError(f"bands: made for {bands.shape[1]}x{bands.shape[0]}, the image is {w}x{h}")
-        if f not in _REPEAT or h != f * thr.shape[0] or w != f * thr.shape[1] or (bands.starts % f).any():
-            return self._open(bands.stack(_below(gray, thr, f))).view(bool)
+        level, f = self._level(gray)
+        if f not in _REPEAT or h != f * level.shape[0] or w != f * level.shape[1] or (bands.starts % f).any():
+            return self._open(bands.stack(_below(gray, self._from_level(level), f))).view(bool)
         wide_type, repeat = _REPEAT[f]
-        wide = (thr.astype(wide_type) * repeat).view(np.uint8)
         out = np.zeros(bands.stacked_shape, np.uint8)
         for a, b, o in zip(bands.starts.tolist(), bands.stops.tolist(), bands.offsets.tolist()):
+            # the threshold of the band's rows only, its columns repeated f times
+            rows = level[a // f:-(-b // f)]
+            wide = (self._from_level(rows).astype(wide_type) * repeat).view(np.uint8)
             for phase in range(f):
                 src = gray[a + phase:b:f]
-                cv2.compare(src, wide[a // f:a // f + len(src)], cv2.CMP_LT, dst=out[o + phase:o + b - a:f])
+                cv2.compare(src, wide[:len(src)], cv2.CMP_LT, dst=out[o + phase:o + b - a:f])
         return self._open(cv2.threshold(out, 0, 1, cv2.THRESH_BINARY)[1]).view(bool)
 
     def _threshold(self, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
         """The validated image, the threshold on the reduced image, and the reduction factor."""
         gray = as_gray(gray, name="gray")
+        level, f = self._level(gray)
+        return gray, self._from_level(level), f
+
+    def _level(self, gray: np.ndarray) -> tuple[np.ndarray, int]:
+        """The local level on the reduced image, and the reduction factor."""
         window = self.window or 31
         # The local level varies slowly: computing it on a reduced image and enlarging it again
         # costs a fraction of the full-size filter.
         f = max(1, min(self.downscale, window // 5))
-        small = _reduce(gray, f)
-        level = self.local_level(small, max(3, int(round(window / f))))
-        thr = np.minimum(cv2.convertScaleAbs(level, alpha=1.0 - self.offset), cv2.subtract(level, self.min_contrast))
-        return gray, thr, f
+        return self.local_level(_reduce(gray, f), max(3, int(round(window / f)))), f
+
+    def _from_level(self, level: np.ndarray) -> np.ndarray:
+        return np.minimum(cv2.convertScaleAbs(level, alpha=1.0 - self.offset), cv2.subtract(level, self.min_contrast))
 
     def _open(self, ink: np.ndarray) -> np.ndarray:
         opening = 3 if self.opening == -1 else self.opening

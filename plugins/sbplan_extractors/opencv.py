@@ -46,7 +46,7 @@ class OpenCVExtractor(BoundaryExtractor):
 
     def extract_outer(self, binary: np.ndarray) -> list[Contour]:
         """Only the outer boundaries, as :meth:`extract` gives them (same points, same order of
-        traversal), with ``parent`` -1.
+        traversal), with ``parent`` -1. Without chains, the points are OpenCV's own int32 arrays.
 
         ``RETR_CCOMP`` puts every outer boundary, islands inside holes included, on the top level
         of its two-level hierarchy, so no nesting depth is needed and no hole is converted.
@@ -56,11 +56,15 @@ class OpenCVExtractor(BoundaryExtractor):
         if not found:
             return []
         keep = np.flatnonzero(hierarchy[0, :, 3] < 0).tolist()
+        if not self.chains:
+            # no conversion: this runs once per frame on detection's hot path
+            empty = np.zeros(0, np.uint8)
+            return [Contour(found[i].reshape(-1, 2), chain=empty) for i in keep]
         found = [found[i] for i in keep]
         lengths = np.fromiter(map(len, found), dtype=np.int64, count=len(found))
         points = np.concatenate(found).reshape(-1, 2).astype(np.int64)
         n = len(found)
-        return build_contours(points, lengths, np.zeros(n, bool), np.full(n, -1), chains=self.chains)
+        return build_contours(points, lengths, np.zeros(n, bool), np.full(n, -1), chains=True)
 
 
 def find_contours_opencv(binary: np.ndarray, *, chains: bool = True) -> list[Contour]:
