@@ -19,7 +19,7 @@ from .errors import DetectionError
 from .geometry import centroids, signed_areas
 from .imageio import as_gray, load_image
 from .obstacles import Obstacle, find_obstacles
-from .outline_check import outline_deviation, signed_distance_map
+from .outline_check import INNER_MARGIN_PX, hidden_piece, outline_deviation, reference_samples, signed_distance_map
 
 FORMAT = "sbplan.detection/1"
 
@@ -124,6 +124,11 @@ class Detector:
         areas = np.abs(signed_areas(cal.symbol_polygons))
         self.cell_area = areas.reshape(cal.grid.rows, cal.grid.cols)
         self.distance_map = signed_distance_map(cal.symbol_polygons, cal.image_shape)
+        # each cell's reference outline points, moved into the symbol by what light and focus pull
+        # them in (calibrated per point) plus a margin: a found symbol must cover them all
+        self.ref_points, self.inward = reference_samples(cal.symbol_polygons)
+        tol = cal.inner_tolerance_px if cal.inner_tolerance_px is not None else cal.outline_tolerance_px
+        self.allowance = np.broadcast_to(tol, self.ref_points.shape[:2]) + INNER_MARGIN_PX
         self.stage_names = {"binarizer": self.binarizer.name, "extractor": self.extractor.name,
                             "approximator": self.approximator.name, "matcher": self.matcher.name,
                             "mapper": self.mapper.name}
@@ -178,8 +183,13 @@ class Detector:
                 # more than light and focus make it is partly hidden.
                 if ok.any():
                     idx = np.flatnonzero(ok)
-                    deviation = outline_deviation([hit_polygons[i] for i in idx], self.distance_map)
-                    ok[idx[deviation > cal.outline_tolerance_px]] = False
+                    deviation, shift = outline_deviation([hit_polygons[i] for i in idx], self.distance_map,
+                                                         return_shift=True)
+                    # ... and one that left out a piece of its cell's reference outline is too
+                    flat = cells[idx, 0] * cols + cells[idx, 1]
+                    hidden = hidden_piece([hit_polygons[i] for i in idx], shift, self.ref_points[flat],
+                                          self.inward[flat], self.allowance[flat], binary)
+                    ok[idx[(deviation > cal.outline_tolerance_px) | hidden]] = False
                 found[cells[ok, 0], cells[ok, 1]] = True
                 matched, candidates = centres[ok], centres[~ok]
         else:
