@@ -114,6 +114,20 @@ class RowBands:
             xy[:, 1] += self._shift[rows]
         return xy
 
+    def to_stacked(self, xy: np.ndarray) -> np.ndarray:
+        """Points ``(x, y)`` (N, 2) of the full image mapped to the stacked image.
+
+        Points between bands go to the separator row after the band above them (or, above the
+        first band, to row 0 minus their distance); a point inside a band maps exactly.
+        """
+        xy = np.array(xy, dtype=np.float64).reshape(-1, 2)
+        if len(xy):
+            band = np.clip(np.searchsorted(self.starts, np.floor(xy[:, 1] + 0.5), side="right") - 1, 0, None)
+            xy[:, 1] -= (self.starts - self.offsets)[band]
+            beyond = xy[:, 1] > (self.offsets + self.stops - self.starts)[band]
+            xy[beyond, 1] = (self.offsets + self.stops - self.starts)[band[beyond]]
+        return xy
+
     def __repr__(self) -> str:
         bands = ", ".join(f"{a}:{b}" for a, b in zip(self.starts.tolist(), self.stops.tolist()))
         return f"RowBands([{bands}] of {self.shape[0]} rows, {self.fraction:.0%})"

@@ -20,7 +20,8 @@ from . import plugins
 from .errors import CalibrationError, InputError
 from .grid import Grid, fit_grid
 from .imageio import as_gray, load_image, write_json
-from .outline_check import outline_deviation, signed_distance_map
+from .outline_check import (inner_deviations, inner_tolerance, outline_deviation, reference_samples,
+                            signed_distance_map)
 from .workspace import Workspace, load_workspace
 
 FORMAT = "sbplan.calibration/1"
@@ -64,6 +65,11 @@ class Calibration:
     outline_tolerance_px : float
         How far a matched symbol's outline may stray from its cell's reference outline, beyond a
         common shift, before the symbol counts as partly hidden (see :mod:`sbplan.outline_check`).
+    inner_tolerance_px : ndarray (rows * cols, S) or None
+        The other direction: per cell and point of its reference outline (S arc-length samples),
+        how far that point may lie outside a found outline, beyond the common shift, as the
+        degraded copies showed (:func:`sbplan.outline_check.inner_tolerance`). None in calibration
+        files written before it existed: detection then uses ``outline_tolerance_px`` everywhere.
     workspace : Workspace
     """
 
@@ -79,6 +85,7 @@ class Calibration:
     symbol_area_px: float
     symbol_points_range: tuple[int, int]
     outline_tolerance_px: float = 3.0
+    inner_tolerance_px: np.ndarray | None = None
     workspace: Workspace = field(default_factory=Workspace)
     stats: dict[str, Any] = field(default_factory=dict)
 
@@ -119,6 +126,8 @@ class Calibration:
                 "area_px": self.symbol_area_px,
                 "points_range": list(self.symbol_points_range),
                 "outline_tolerance_px": self.outline_tolerance_px,
+                **({} if self.inner_tolerance_px is None else
+                   {"inner_tolerance_px": np.round(self.inner_tolerance_px, 3).tolist()}),
                 "polygons": [np.round(p, 3).tolist() for p in self.symbol_polygons],
             },
             "other_polygons": [np.round(p, 3).tolist() for p in self.other_polygons],
@@ -150,6 +159,8 @@ class Calibration:
                 symbol_area_px=float(sym["area_px"]),
                 symbol_points_range=(int(sym["points_range"][0]), int(sym["points_range"][1])),
                 outline_tolerance_px=float(sym["outline_tolerance_px"]),
+                inner_tolerance_px=(np.asarray(sym["inner_tolerance_px"], np.float64)
+                                    if "inner_tolerance_px" in sym else None),
                 workspace=Workspace.from_json(data["workspace"]),
                 stats=dict(data.get("stats", {})),
             )
@@ -304,11 +315,17 @@ def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str 
     cell_area[cells[:, 0], cells[:, 1]] = shapes.areas[members]
     symbol_polygons = [shapes.polygons[i] for i in members[np.argsort(cells[:, 0] * grid.cols + cells[:, 1])]]
     distance_map = signed_distance_map(symbol_polygons, gray.shape)
-    degraded, deviations, degraded_polygons = _degraded_symbols(gray, grid, reference_descriptor, cell_area, distance_map,
-                                             binarizer=chosen["binarizer"], points_range=points_range, **kw)
+    degraded, deviations, degraded_polygons, degraded_cells, shifts = _degraded_symbols(
+        gray, grid, reference_descriptor, cell_area, distance_map,
+        binarizer=chosen["binarizer"], points_range=points_range, **kw)
     # An obstacle that clips a symbol moves part of its outline by more than light and focus
     # move it; the tolerance sits outside what the degraded copies showed, and at least 1 px.
     outline_tolerance = float(max(1.25 * np.max(deviations), 1.0)) if len(deviations) else 3.0
+    # ... and the other way round: how far defocus and light pull each reference point in
+    ref_points, _ = reference_samples(symbol_polygons)
+    inner = inner_deviations(ref_points[degraded_cells], degraded_polygons, shifts)
+    inner_tol = (inner_tolerance(inner, degraded_cells, grid.rows * grid.cols) if len(degraded_cells)
+                 else np.full((grid.rows * grid.cols, ref_points.shape[1]), outline_tolerance))
     confusers = confuser_distances(chosen["matcher"], reference_descriptor, float(np.median(shapes.areas[members])))
     others = np.concatenate([np.delete(dist, members), confusers])
     threshold, margin = derive_threshold(np.concatenate([dist[members], degraded]), others)
@@ -340,6 +357,7 @@ def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str 
         symbol_area_px=float(np.median(shapes.areas[members])),
         symbol_points_range=(int(n_points.min() * 0.7), int(np.ceil(n_points.max() * 1.4))),
         outline_tolerance_px=outline_tolerance,
+        inner_tolerance_px=inner_tol,
         workspace=workspace,
         stats=stats,
     )
@@ -384,11 +402,13 @@ def confuser_distances(matcher, descriptor: np.ndarray, area: float) -> np.ndarr
 
 def _degraded_symbols(gray: np.ndarray, grid: Grid, descriptor: np.ndarray, cell_area: np.ndarray,
                       distance_map: np.ndarray, *,
-                      binarizer, extractor, approximator, matcher, points_range) -> tuple[np.ndarray, np.ndarray]:
+                      binarizer, extractor, approximator, matcher, points_range) -> tuple:
     """The reference's symbols in defocused, dimmed, dark-and-grainy and noisy copies of it.
 
     Returns their descriptor distances to ``descriptor``, their outlines' deviations from the
-    reference outlines (:func:`sbplan.outline_check.outline_deviation`) and their polygons.
+    reference outlines and common shifts (:func:`sbplan.outline_check.outline_deviation`), their
+    polygons and their cells (flat, row-major), as ``(distances, deviations, polygons, cells,
+    shifts)``.
     """
     import cv2
 
@@ -400,7 +420,7 @@ def _degraded_symbols(gray: np.ndarray, grid: Grid, descriptor: np.ndarray, cell
         np.clip(0.3 * g + rng.normal(0, 4, g.shape), 0, 255).astype(np.uint8),
         np.clip(g + rng.normal(0, 8, g.shape), 0, 255).astype(np.uint8),
     ]
-    distances, deviations, polygons = [], [], []
+    distances, deviations, polygons, cells_kept, shifts = [], [], [], [], []
     for image in copies:
         shapes = extract_shapes(image, binarizer=binarizer, extractor=extractor, approximator=approximator,
                                 matcher=matcher, points_range=points_range)
@@ -420,11 +440,15 @@ def _degraded_symbols(gray: np.ndarray, grid: Grid, descriptor: np.ndarray, cell
         first = order[np.r_[True, flat[order][1:] != flat[order][:-1]]]
         distances.append(d[first])
         kept = np.flatnonzero(ok)[first]
-        deviations.append(outline_deviation([shapes.polygons[i] for i in kept], distance_map))
+        dev, shift = outline_deviation([shapes.polygons[i] for i in kept], distance_map, return_shift=True)
+        deviations.append(dev)
+        shifts.append(shift)
+        cells_kept.append(flat[first])
         polygons.extend(shapes.polygons[i] for i in kept)
     if not distances:
-        return np.zeros(0), np.zeros(0), []
-    return np.concatenate(distances), np.concatenate(deviations), polygons
+        return np.zeros(0), np.zeros(0), [], np.zeros(0, np.int64), np.zeros(0)
+    return (np.concatenate(distances), np.concatenate(deviations), polygons, np.concatenate(cells_kept),
+            np.concatenate(shifts))
 
 
 def _symbol_members(shapes: Shapes, matcher, *, ref: np.ndarray | None) -> np.ndarray:

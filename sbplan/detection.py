@@ -20,7 +20,7 @@ from .errors import DetectionError
 from .geometry import PolygonBatch, centroids, signed_areas
 from .imageio import as_gray, load_image
 from .obstacles import Obstacle, find_obstacles
-from .outline_check import outline_deviation, signed_distance_map
+from .outline_check import INNER_MARGIN_PX, hidden_piece, outline_deviation, reference_samples, signed_distance_map
 
 FORMAT = "sbplan.detection/1"
 
@@ -164,10 +164,16 @@ class Detector:
         areas = np.abs(signed_areas(cal.symbol_polygons))
         self.cell_area = areas.reshape(cal.grid.rows, cal.grid.cols)
         self.distance_map = signed_distance_map(cal.symbol_polygons, cal.image_shape)
+        # each cell's reference outline points, moved into the symbol by what light and focus pull
+        # them in (calibrated per point) plus a margin: a found symbol must cover them all
+        self.ref_points, self.inward = reference_samples(cal.symbol_polygons)
+        tol = cal.inner_tolerance_px if cal.inner_tolerance_px is not None else cal.outline_tolerance_px
+        self.allowance = np.broadcast_to(tol, self.ref_points.shape[:2]) + INNER_MARGIN_PX
         # Symbols only appear in the rows where the reference showed them; when those rows are a
-        # clear part of the frame, the per-pixel work is limited to them (sbplan.bands).
+        # clear part of the frame, the per-pixel work is limited to them (sbplan.bands), and the
+        # reference data the checks compare with is laid out the same way.
         self.bands: RowBands | None = None
-        self._band_distance_map = self.distance_map
+        self._band_distance_map, self._band_ref_points = self.distance_map, self.ref_points
         if row_bands and cal.symbol_polygons:
             size = float(np.sqrt(np.median(areas)))
             bands = RowBands.around(cal.symbol_polygons, cal.image_shape, margin=max(BAND_MARGIN_PX, BAND_MARGIN * size))
@@ -175,6 +181,7 @@ class Detector:
                 self.bands = bands
                 # separators read "far from any outline": an outline touching one is not a symbol
                 self._band_distance_map = bands.stack(self.distance_map, fill=np.float32(1e3))
+                self._band_ref_points = bands.to_stacked(self.ref_points.reshape(-1, 2)).reshape(self.ref_points.shape)
         self.stage_names = {"binarizer": self.binarizer.name, "extractor": self.extractor.name,
                             "approximator": self.approximator.name, "matcher": self.matcher.name,
                             "mapper": self.mapper.name}
@@ -243,8 +250,12 @@ class Detector:
                 if ok.any():
                     idx = np.flatnonzero(ok)
                     checked = hit_polygons if len(idx) == len(hit) else hit_polygons.take(idx)
-                    deviation = outline_deviation(checked, self._band_distance_map)
-                    ok[idx[deviation > cal.outline_tolerance_px]] = False
+                    deviation, shift = outline_deviation(checked, self._band_distance_map, return_shift=True)
+                    # ... and one that left out a piece of its cell's reference outline is too
+                    flat = cells[idx, 0] * cols + cells[idx, 1]
+                    hidden = hidden_piece(checked, shift, self._band_ref_points[flat], self.inward[flat],
+                                          self.allowance[flat], binary)
+                    ok[idx[(deviation > cal.outline_tolerance_px) | hidden]] = False
                 found[cells[ok, 0], cells[ok, 1]] = True
                 matched, candidates = centres[ok], centres[~ok]
         else:

@@ -71,3 +71,12 @@ def test_dense_rows_fall_back_to_whole_frames():
     det = Detector(calibrate(scenes[0][0]))
     assert det.bands is None
     assert RowBands.around(det.calibration.symbol_polygons, (320, 320), margin=6).fraction > 0.8
+
+
+def test_to_stacked_inverts_to_full_inside_the_bands():
+    bands = RowBands([(2, 5), (10, 12)], (20, 3))
+    full = np.array([[1.0, 2.0], [2.5, 4.2], [0.0, 10.0], [1.0, 11.4]])
+    assert np.allclose(bands.to_stacked(full), [[1.0, 0.0], [2.5, 2.2], [0.0, 4.0], [1.0, 5.4]])
+    assert np.allclose(bands.to_full(bands.to_stacked(full)), full)
+    # between bands: the separator row after the band above
+    assert np.allclose(bands.to_stacked([[0.0, 7.0]]), [[0.0, 3.0]])

@@ -1,0 +1,119 @@
+"""The outline checks: a found symbol must stay near its cell's reference outline both ways.
+
+Real OpenCV on small synthetic arrays and one rendered scene; behaviour only, never timing.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from sbplan.calibration import Calibration, calibrate
+from sbplan.detection import Detector
+from sbplan.evaluation import condition_scenes
+from sbplan.outline_check import (INNER_MARGIN_PX, SAMPLES, hidden_piece, inner_tolerance, outline_deviation,
+                                  reference_samples, signed_distance_map, signed_distances_to_polygon)
+
+# an L with a thin flag-like tip to the right, as a fixed camera would see one symbol
+SYMBOL = np.array([[20, 20], [70, 20], [52, 32], [60, 44], [34, 44], [34, 80], [20, 80]], float)
+
+
+def _ink(polygon: np.ndarray, shape=(100, 100)) -> np.ndarray:
+    ink = np.zeros(shape, np.uint8)
+    cv2.fillPoly(ink, [np.rint(polygon * 16).astype(np.int32)], 1, cv2.LINE_8, shift=4)
+    return ink.astype(bool)
+
+
+def _check(found: np.ndarray, *, tolerance: float = 0.5) -> bool:
+    points, inward = reference_samples([SYMBOL])
+    dmap = signed_distance_map([SYMBOL], (100, 100))
+    _, shift = outline_deviation([found], dmap, return_shift=True)
+    allowance = np.full((1, SAMPLES), tolerance + INNER_MARGIN_PX)
+    return bool(hidden_piece([found], shift, points, inward, allowance, _ink(found))[0])
+
+
+def test_reference_normals_point_into_the_symbol_whatever_the_orientation():
+    for polygon in (SYMBOL, SYMBOL[::-1]):
+        points, inward = reference_samples([polygon])
+        assert points.shape == inward.shape == (1, SAMPLES, 2)
+        np.testing.assert_allclose(np.linalg.norm(inward, axis=-1), 1.0)
+        # a small step inward from a point on a straight edge lands inside the symbol
+        probe = points[0] + 0.5 * inward[0]
+        edge = np.abs(signed_distances_to_polygon(points[0], polygon)) < 1e-9
+        assert edge.all()
+        assert (signed_distances_to_polygon(probe, polygon) < 0).mean() > 0.9
+
+
+def test_signed_distance_to_a_polygon():
+    square = np.array([[10, 10], [30, 10], [30, 30], [10, 30]], float)
+    d = signed_distances_to_polygon(np.array([[20, 20], [20, 12], [35, 20], [20, 5]], float), square)
+    np.testing.assert_allclose(d, [-10, -2, 5, 5])
+
+
+def test_the_whole_symbol_and_a_uniformly_shrunk_one_have_lost_nothing():
+    assert not _check(SYMBOL)
+    centre = SYMBOL.mean(axis=0)
+    # light and focus move the whole outline: a common shift is not a hidden piece
+    assert not _check(centre + (SYMBOL - centre) * 0.96)
+
+
+def test_a_cut_off_tip_is_a_hidden_piece_though_the_outline_stays_near_the_reference():
+    # the tip beyond x = 62 is hidden (about 2 % of the symbol): the found outline cuts across it
+    clipped = np.array([[20, 20], [62, 20], [56.5, 25], [52, 32], [60, 44], [34, 44], [34, 80], [20, 80]], float)
+    dmap = signed_distance_map([SYMBOL], (100, 100))
+    # walking the found outline, nothing strays far from *some* reference edge ...
+    assert outline_deviation([clipped], dmap)[0] < 3.0
+    # ... walking the reference outline finds the missing tip
+    assert _check(clipped)
+
+
+def test_a_hidden_corner_of_the_stem_is_a_hidden_piece():
+    clipped = np.array([[20, 20], [70, 20], [52, 32], [60, 44], [34, 44], [34, 74], [28, 80], [20, 80]], float)
+    assert _check(clipped)
+    # the same corner allowed by a tolerance as large as the cut is accepted
+    assert not _check(clipped, tolerance=6.0)
+
+
+def test_inner_tolerance_takes_each_points_largest_deviation_and_its_neighbours():
+    dev = np.zeros((3, SAMPLES))
+    dev[0, 10] = 2.0
+    dev[1, 10] = -3.0
+    tol = inner_tolerance(dev, np.array([0, 0, 2]), 4)
+    assert tol.shape == (4, SAMPLES)
+    assert tol[0, 9] == tol[0, 10] == tol[0, 11] == 3.0 and tol[0, 12] == 0.0
+    assert (tol[2] == 0).all()
+    assert (tol[1] == 3.0).all() and (tol[3] == 3.0).all()  # cells no copy found: the largest tolerance
+
+
+@pytest.fixture(scope="module")
+def bench_sliver():
+    """The sliver of `sbplan bench detect` (seed 0, scene index 3): cell (0, 8), 2.3 % of its symbol
+    hidden by a bright obstacle, under defocus blur."""
+    scenes = list(condition_scenes("blur", scenes=4, size=(1280, 960), grid=(10, 5), seed=0))
+    return scenes[0][0], scenes[3][1], scenes[3][2]
+
+
+def test_a_defocused_symbol_with_a_hidden_corner_is_occupied_and_no_free_one_is(bench_sliver):
+    reference, image, truth = bench_sliver
+    assert truth.cells[0, 8] == 1 and truth.overlap[0, 8] < 0.025
+    cal = calibrate(reference)
+    assert cal.inner_tolerance_px.shape == (cal.grid.rows * cal.grid.cols, SAMPLES)
+    occupied = Detector(cal)(image).occupied
+    assert occupied[0, 8]
+    assert not occupied[truth.cells == 0].any()
+    assert occupied[truth.cells == 1].all()
+
+
+def test_calibration_files_without_inner_tolerances_still_load_and_detect(bench_sliver):
+    reference, image, truth = bench_sliver
+    cal = calibrate(reference)
+    data = cal.to_json()
+    assert len(data["symbol"]["inner_tolerance_px"]) == cal.grid.rows * cal.grid.cols
+    round_trip = Calibration.from_json(data)
+    np.testing.assert_allclose(round_trip.inner_tolerance_px, cal.inner_tolerance_px, atol=1e-3)
+    del data["symbol"]["inner_tolerance_px"]  # a file written before the inner check existed
+    old = Calibration.from_json(data)
+    assert old.inner_tolerance_px is None
+    occupied = Detector(old)(image).occupied
+    assert not occupied[truth.cells == 0].any()
