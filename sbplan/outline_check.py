@@ -160,7 +160,8 @@ def hidden_piece(polygons: list[np.ndarray], shifts: np.ndarray, points: np.ndar
     image the outlines were found in (one bilinear ``remap`` for all points): ink there means the
     symbol reaches that deep, so the point is near enough. Only the few points whose moved copy
     finds no ink (a missing piece, a thin tip the normal crosses, a washed-out spot) get the exact
-    signed distance to their symbol's found outline.
+    signed distance to their symbol's found outline (``cv2.pointPolygonTest``, one call per point:
+    there are a handful per frame).
 
     Parameters
     ----------
@@ -193,22 +194,14 @@ def hidden_piece(polygons: list[np.ndarray], shifts: np.ndarray, points: np.ndar
     si, pi = np.nonzero(~deep)
     if not len(si):
         return hidden
-    pts, depth = points[si, pi], depth[si, pi]
-    # exact signed distance of each remaining point to its symbol's found outline (padded segments)
-    involved, local = np.unique(si, return_inverse=True)
-    k = max(len(polygons[i]) for i in involved)
-    a = np.stack([np.concatenate([polygons[i], np.repeat(polygons[i][:1], k - len(polygons[i]), axis=0)])
-                  for i in involved])
-    b = np.roll(a, -1, axis=1)  # the padding repeats vertex 0: the last real vertex closes to it
-    a, b = a[local], b[local]
-    ab = b - a
-    ap = pts[:, None, :] - a
-    t = np.clip((ap * ab).sum(-1) / np.maximum((ab * ab).sum(-1), 1e-12), 0.0, 1.0)
-    d2 = ((ap - t[..., None] * ab) ** 2).sum(-1).min(axis=1)
-    py = pts[:, 1:2]
-    crosses = (a[..., 1] > py) != (b[..., 1] > py)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        x_at = a[..., 0] + (py - a[..., 1]) * ab[..., 0] / ab[..., 1]
-    outside = (crosses & (pts[:, 0:1] < x_at)).sum(axis=1) % 2 == 0
-    hidden[si[outside & (d2 > depth * depth)]] = True
+    # the exact signed distance of those few points (a handful per frame, none on most symbols)
+    # to their symbol's found outline; OpenCV's is positive inside
+    outlines: dict[int, np.ndarray] = {}
+    for i, j in zip(si.tolist(), pi.tolist()):
+        if hidden[i]:
+            continue
+        if i not in outlines:
+            outlines[i] = np.asarray(polygons[i], np.float32)
+        x, y = points[i, j]
+        hidden[i] = cv2.pointPolygonTest(outlines[i], (float(x), float(y)), True) < -depth[i, j]
     return hidden
