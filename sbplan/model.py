@@ -49,6 +49,15 @@ class Contour:
     chain: np.ndarray = field(default_factory=lambda: np.zeros(0, np.uint8))
     parent: int = -1
 
+    @classmethod
+    def outer_unchecked(cls, points: np.ndarray, chain: np.ndarray) -> "Contour":
+        """An outer boundary (``is_hole`` False, orientation +1, parent -1) made without the
+        dataclass constructor: an extractor's hot path makes dozens per frame, and a frozen
+        dataclass's ``__init__`` costs twice as much. ``points`` and ``chain`` are not checked."""
+        obj = object.__new__(cls)
+        obj.__dict__.update(points=points, is_hole=False, orientation=1, chain=chain, parent=-1)
+        return obj
+
     @property
     def start(self) -> tuple[int, int]:
         """The start point ``(x, y)`` of the Freeman chain."""
