@@ -146,7 +146,16 @@ class VisibilityMap:
         e2 = self._ex * self._ex + self._ey * self._ey
         self._tol_e = self.eps * np.sqrt(e2)  # |cross(e, x - a)| below this: x is on the edge's line
         self._inv_e2 = 1.0 / np.maximum(e2, 1e-300)
-        self._up = self._by > self._ay  # upward edges (the ray-crossing parity of _outside_all)
+        self._up = self._by > self._ay
+        # Unit vectors from each edge's start vertex to its next and previous vertex, and whether
+        # that vertex is convex (the cone test of _cone_hit).
+        u1 = eb - ea
+        n1 = np.hypot(u1[:, 0], u1[:, 1]) + 1e-300
+        u2 = self._vp - ea
+        n2 = np.hypot(u2[:, 0], u2[:, 1]) + 1e-300
+        self._u1x, self._u1y = u1[:, 0] / n1, u1[:, 1] / n1
+        self._u2x, self._u2y = u2[:, 0] / n2, u2[:, 1] / n2
+        self._convex = _cross(-self._u2x, -self._u2y, self._u1x, self._u1y) > 0  # upward edges (the ray-crossing parity of _outside_all)
         self._pstart = np.cumsum(self._pcount) - self._pcount
         cp = self._cp
         self._cx, self._cy = cp[:, 0].copy(), cp[:, 1].copy()
@@ -212,8 +221,7 @@ class VisibilityMap:
         blocked = bool(proper.any())
         if not blocked and on.any():
             ee = np.flatnonzero(on)
-            blocked = bool(_enters_cone(self._ea[ee], self._vp[ee], self._eb[ee], np.full(len(ee), dx),
-                                        np.full(len(ee), dy), self.eps).any())
+            blocked = bool(_enters_cone(self, ee, np.full(len(ee), dx), np.full(len(ee), dy)).any())
         return blocked, o3, o4
 
     def _fan_blocked(self, p: np.ndarray, qx: np.ndarray, qy: np.ndarray) -> np.ndarray:
@@ -237,7 +245,7 @@ class VisibilityMap:
                                        L2[:, None], tol_s[:, None])
             if on.any():
                 kk, ee = np.nonzero(on)
-                hit = _enters_cone(self._ea[ee], self._vp[ee], self._eb[ee], Dx[kk], Dy[kk], self.eps)
+                hit = _enters_cone(self, ee, Dx[kk], Dy[kk])
                 proper[kk[hit], ee[hit]] = True
             return proper.any(axis=1)
         k, e = self._fan_pairs(Ax, Ay, Bx, By, Dx, Dy, L2)
@@ -250,7 +258,7 @@ class VisibilityMap:
         if on.any():
             idx = np.flatnonzero(on)
             ee = e[idx]
-            hit = _enters_cone(self._ea[ee], self._vp[ee], self._eb[ee], Dx[k[idx]], Dy[k[idx]], self.eps)
+            hit = _enters_cone(self, ee, Dx[k[idx]], Dy[k[idx]])
             proper[idx[hit]] = True
         out[k[proper]] = True
         return out
@@ -320,7 +328,7 @@ class VisibilityMap:
             proper, on, _ = _crossings(Ax, Ay, Bx, By, o3, ex, ey, tol_e, Dx, Dy, L2, self.eps * np.sqrt(L2))
             if on.any():
                 kk, ee = np.nonzero(on)
-                hit = _enters_cone(ea[ee], vp[ee], eb[ee], Dx[kk, 0], Dy[kk, 0], self.eps)
+                hit = _enters_cone_at(ea[ee], vp[ee], eb[ee], Dx[kk, 0], Dy[kk, 0], self.eps)
                 proper[kk[hit], ee[hit]] = True
             out[c0:c0 + step] = proper.any(axis=1)
         return out
@@ -471,23 +479,32 @@ def _crossings(Ax, Ay, Bx, By, o3, ex, ey, tol_e, Dx, Dy, L2, tol_s):
     return proper, on, o4
 
 
-def _enters_cone(v, vprev, vnext, dx, dy, eps) -> np.ndarray:
+def _enters_cone(vm: "VisibilityMap", ee: np.ndarray, dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
     """True where direction (dx, dy) or its opposite points strictly into the interior cone at
-    vertex v (interior on the left of the ring prev -> v -> next)."""
+    the start vertex of the map's edge ee (the unit edge vectors precomputed by _prepare)."""
+    return _cone_hit(vm._u1x[ee], vm._u1y[ee], vm._u2x[ee], vm._u2y[ee], vm._convex[ee], dx, dy, vm.eps)
+
+
+def _enters_cone_at(v, vprev, vnext, dx, dy, eps) -> np.ndarray:
+    """_enters_cone for vertices given as (K, 2) arrays v with their ring neighbours."""
+    e1, e2 = vnext - v, vprev - v
+    n1 = np.hypot(e1[:, 0], e1[:, 1]) + 1e-300
+    n2 = np.hypot(e2[:, 0], e2[:, 1]) + 1e-300
+    u1x, u1y, u2x, u2y = e1[:, 0] / n1, e1[:, 1] / n1, e2[:, 0] / n2, e2[:, 1] / n2
+    return _cone_hit(u1x, u1y, u2x, u2y, _cross(-u2x, -u2y, u1x, u1y) > 0, dx, dy, eps)
+
+
+def _cone_hit(u1x, u1y, u2x, u2y, convex, dx, dy, eps) -> np.ndarray:
+    """The cone test: interior on the left of the ring prev -> v -> next, u1 the unit vector
+    v -> next, u2 the unit vector v -> prev.
+
+    With unit d, c1 = u1 x d and c2 = d x u2: at a convex vertex d or -d is strictly inside when
+    c1 and c2 are both beyond eps with the same sign; at a reflex vertex the interior is all but
+    the closed exterior cone from u2 to u1, which d and -d both avoid only when d runs along both
+    edges (|c1|, |c2| <= eps)."""
     n = np.hypot(dx, dy) + 1e-300
     dx, dy = dx / n, dy / n
-    e1 = vnext - v
-    e2 = vprev - v
-    e1 = e1 / (np.hypot(e1[:, 0], e1[:, 1])[:, None] + 1e-300)
-    e2 = e2 / (np.hypot(e2[:, 0], e2[:, 1])[:, None] + 1e-300)
-    convex = _cross(-e2[:, 0], -e2[:, 1], e1[:, 0], e1[:, 1]) > 0
-    out = np.zeros(len(v), bool)
-    for sgn in (1.0, -1.0):
-        x, y = sgn * dx, sgn * dy
-        c1 = _cross(e1[:, 0], e1[:, 1], x, y)
-        c2 = _cross(x, y, e2[:, 0], e2[:, 1])
-        inside_convex = (c1 > eps) & (c2 > eps)
-        # Reflex: interior is everything but the closed exterior cone from e2 to e1.
-        ext = (_cross(e2[:, 0], e2[:, 1], x, y) >= -eps) & (_cross(x, y, e1[:, 0], e1[:, 1]) >= -eps)
-        out |= np.where(convex, inside_convex, ~ext)
-    return out
+    c1 = u1x * dy - u1y * dx
+    c2 = dx * u2y - dy * u2x
+    inside_convex = ((c1 > eps) & (c2 > eps)) | ((c1 < -eps) & (c2 < -eps))
+    return np.where(convex, inside_convex, (np.abs(c1) > eps) | (np.abs(c2) > eps))
