@@ -91,7 +91,7 @@ class VisibilityMap:
             return
         new_rings = rings(polygons)
         # Edges per polygon (its rings are consecutive in new_rings): the parity test of
-        # _outside_all sums crossings per polygon.
+        # straight_free sums crossings per polygon.
         pcount = [sum(len(r.coords) - 1 for r in (q.exterior, *q.interiors) if len(r.coords) - 1 >= 3)
                   for q in polygons]
         ea = np.concatenate(new_rings) if new_rings else np.zeros((0, 2))
@@ -146,7 +146,11 @@ class VisibilityMap:
         e2 = self._ex * self._ex + self._ey * self._ey
         self._tol_e = self.eps * np.sqrt(e2)  # |cross(e, x - a)| below this: x is on the edge's line
         self._inv_e2 = 1.0 / np.maximum(e2, 1e-300)
-        self._up = self._by > self._ay
+        self._up = self._by > self._ay  # upward edges (the ray-crossing parity of straight_free)
+        # Complex forms for the one-segment test (_segment): a, e and -conj(e).
+        self._ac = self._ax + 1j * self._ay
+        self._ecx = self._ex + 1j * self._ey
+        self._nce = -self._ex + 1j * self._ey
         # Unit vectors from each edge's start vertex to its next and previous vertex, and whether
         # that vertex is convex (the cone test of _cone_hit).
         u1 = eb - ea
@@ -155,7 +159,7 @@ class VisibilityMap:
         n2 = np.hypot(u2[:, 0], u2[:, 1]) + 1e-300
         self._u1x, self._u1y = u1[:, 0] / n1, u1[:, 1] / n1
         self._u2x, self._u2y = u2[:, 0] / n2, u2[:, 1] / n2
-        self._convex = _cross(-self._u2x, -self._u2y, self._u1x, self._u1y) > 0  # upward edges (the ray-crossing parity of _outside_all)
+        self._convex = _cross(-self._u2x, -self._u2y, self._u1x, self._u1y) > 0
         self._pstart = np.cumsum(self._pcount) - self._pcount
         cp = self._cp
         self._cx, self._cy = cp[:, 0].copy(), cp[:, 1].copy()
@@ -183,46 +187,65 @@ class VisibilityMap:
     def straight_free(self, p: Sequence[float], q: Sequence[float]) -> bool:
         """True when p and q are certainly not inside any enlarged obstacle (outside, or on a
         boundary) and the segment p-q enters none: then p-q is the shortest route, and the full
-        checks (shapely point queries) and the search would say exactly that. False also when a
-        point is too close to an edge to decide here; the caller then takes the full path."""
+        checks (shapely point queries) and the search would say exactly that. False also when an
+        end is too close to an edge to decide here; the caller then takes the full path."""
         if len(self._ax) == 0:
             return True
-        blocked, op, oq = self._segment(float(p[0]), float(p[1]), float(q[0]), float(q[1]))
-        return not blocked and self._outside_all(float(p[1]), op) and self._outside_all(float(q[1]), oq)
-
-    def _outside_all(self, y: float, o: np.ndarray) -> bool:
-        """Ray-crossing parity of the point at height y whose cross products e x (point - a) with
-        every edge are ``o``: True when it is outside or on the boundary of every polygon, False
-        when it is inside one or within eps of an edge it may cross (undecided). The straddle
-        test (half-open in y) is exact; the side test is trusted only beyond eps from the edge's
-        line, so the parity is exact whenever it is used."""
+        py, qy = float(p[1]), float(q[1])
+        blocked, o3, o4 = self._segment(float(p[0]), py, float(q[0]), qy)
+        if blocked:
+            return False
+        # Ray-crossing parity of both ends at once (row 0: p, row 1: q); o3, o4 are the cross
+        # products e x (end - a) of every edge. The straddle test (half-open in y) is exact; the
+        # side test is trusted only beyond eps from the edge's line, so the parity is exact
+        # whenever it is used. A ray to +x crosses an upward edge with the end on its left
+        # (o > 0), a downward one with the end on its right.
+        o = np.stack((o3, o4))
+        y = np.array(((py,), (qy,)))
         straddle = (self._ay > y) != (self._by > y)
         if (straddle & (np.abs(o) <= self._tol_e)).any():
             return False
-        # A ray to +x crosses an upward edge with the point on its left (o > 0), a downward one
-        # with the point on its right.
         cross = straddle & ((o > 0) == self._up)
-        return not (np.add.reduceat(cross.view(np.uint8), self._pstart) & 1).any()
+        return not (np.add.reduceat(cross.view(np.uint8), self._pstart, axis=1) & 1).any()
 
     def _segment(self, px: float, py: float, qx: float, qy: float):
-        """One segment against every edge: (blocked, o3, o4) with o3 and o4 per edge."""
-        E = len(self._ax)
+        """One segment p-q against every edge: (blocked, o3, o4), o3 and o4 per edge.
+
+        The lean form of _crossings for one segment (the straight-line test of every query and
+        OMPL's motion checks): complex products give two crosses (and a dot) per operation, and
+        the tolerance tests run only on the few edges whose signs already differ."""
+        E = len(self._ac)
         if E == 0:
             z = np.zeros(0)
             return False, z, z
-        Ax, Ay = self._ax - px, self._ay - py
-        Bx, By = self._bx - px, self._by - py
-        o3 = self._ey * Ax - self._ex * Ay
+        A = self._ac - complex(px, py)  # the edges' start vertices a, relative to p
         dx, dy = qx - px, qy - py
+        cd = complex(dx, -dy)  # conj(D)
+        P1 = cd * A  # real: A . D, imag: D x A = o1
+        o1 = P1.imag
+        o3 = (self._nce * A).imag  # -conj(e) * A: e x (p - a)
+        De = (cd * self._ecx).imag  # D x e
+        o2 = o1 + De  # D x (a + e - p)
+        o4 = o3 - De  # e x (q - a)
         L2 = dx * dx + dy * dy
         tol_s = self.eps * math.sqrt(L2)
         self.stats["segment_pairs"] += E
-        proper, on, o4 = _crossings(Ax, Ay, Bx, By, o3, self._ex, self._ey, self._tol_e, dx, dy, L2, tol_s)
-        blocked = bool(proper.any())
-        if not blocked and on.any():
-            ee = np.flatnonzero(on)
-            blocked = bool(_enters_cone(self, ee, np.full(len(ee), dx), np.full(len(ee), dy)).any())
-        return blocked, o3, o4
+        # A proper crossing has strictly opposite signs on both lines: the products pick the
+        # candidates, the tolerances of _crossings decide.
+        c = np.flatnonzero((o1 * o2 < 0) & (o3 * o4 < 0))
+        if len(c):
+            a1, a2, a3, a4, te = o1[c], o2[c], o3[c], o4[c], self._tol_e[c]
+            if ((np.maximum(a1, a2) > tol_s) & (np.minimum(a1, a2) < -tol_s) &
+                    (np.maximum(a3, a4) > te) & (np.minimum(a3, a4) < -te)).any():
+                return True, o3, o4
+        on = np.flatnonzero(np.abs(o1) <= tol_s)
+        if len(on):
+            t = P1.real[on]
+            on = on[(t > tol_s) & (t < L2 - tol_s)]
+            if len(on) and _enters_cone(self, on, np.full(len(on), dx), np.full(len(on), dy), A.real[on],
+                                        A.imag[on]).any():
+                return True, o3, o4
+        return False, o3, o4
 
     def _fan_blocked(self, p: np.ndarray, qx: np.ndarray, qy: np.ndarray) -> np.ndarray:
         """For K segments from the one point p to (qx[k], qy[k]), True where one enters an
@@ -245,7 +268,7 @@ class VisibilityMap:
                                        L2[:, None], tol_s[:, None])
             if on.any():
                 kk, ee = np.nonzero(on)
-                hit = _enters_cone(self, ee, Dx[kk], Dy[kk])
+                hit = _enters_cone(self, ee, Dx[kk], Dy[kk], Ax[ee], Ay[ee])
                 proper[kk[hit], ee[hit]] = True
             return proper.any(axis=1)
         k, e = self._fan_pairs(Ax, Ay, Bx, By, Dx, Dy, L2)
@@ -258,7 +281,7 @@ class VisibilityMap:
         if on.any():
             idx = np.flatnonzero(on)
             ee = e[idx]
-            hit = _enters_cone(self, ee, Dx[k[idx]], Dy[k[idx]])
+            hit = _enters_cone(self, ee, Dx[k[idx]], Dy[k[idx]], Ax[ee], Ay[ee])
             proper[idx[hit]] = True
         out[k[proper]] = True
         return out
@@ -328,7 +351,7 @@ class VisibilityMap:
             proper, on, _ = _crossings(Ax, Ay, Bx, By, o3, ex, ey, tol_e, Dx, Dy, L2, self.eps * np.sqrt(L2))
             if on.any():
                 kk, ee = np.nonzero(on)
-                hit = _enters_cone_at(ea[ee], vp[ee], eb[ee], Dx[kk, 0], Dy[kk, 0], self.eps)
+                hit = _enters_cone_at(ea[ee], vp[ee], eb[ee], Dx[kk, 0], Dy[kk, 0], Ax[kk, ee], Ay[kk, ee], self.eps)
                 proper[kk[hit], ee[hit]] = True
             out[c0:c0 + step] = proper.any(axis=1)
         return out
@@ -479,32 +502,41 @@ def _crossings(Ax, Ay, Bx, By, o3, ex, ey, tol_e, Dx, Dy, L2, tol_s):
     return proper, on, o4
 
 
-def _enters_cone(vm: "VisibilityMap", ee: np.ndarray, dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
-    """True where direction (dx, dy) or its opposite points strictly into the interior cone at
-    the start vertex of the map's edge ee (the unit edge vectors precomputed by _prepare)."""
-    return _cone_hit(vm._u1x[ee], vm._u1y[ee], vm._u2x[ee], vm._u2y[ee], vm._convex[ee], dx, dy, vm.eps)
+def _enters_cone(vm: "VisibilityMap", ee, dx, dy, ax, ay) -> np.ndarray:
+    """True where a segment (direction (dx, dy), the vertex at (ax, ay) from its start) that
+    passes through the start vertex of the map's edge ee enters that vertex's interior cone (the
+    unit edge vectors precomputed by _prepare)."""
+    return _cone_hit(vm._u1x[ee], vm._u1y[ee], vm._u2x[ee], vm._u2y[ee], vm._convex[ee], dx, dy, ax, ay, vm.eps)
 
 
-def _enters_cone_at(v, vprev, vnext, dx, dy, eps) -> np.ndarray:
+def _enters_cone_at(v, vprev, vnext, dx, dy, ax, ay, eps) -> np.ndarray:
     """_enters_cone for vertices given as (K, 2) arrays v with their ring neighbours."""
     e1, e2 = vnext - v, vprev - v
     n1 = np.hypot(e1[:, 0], e1[:, 1]) + 1e-300
     n2 = np.hypot(e2[:, 0], e2[:, 1]) + 1e-300
     u1x, u1y, u2x, u2y = e1[:, 0] / n1, e1[:, 1] / n1, e2[:, 0] / n2, e2[:, 1] / n2
-    return _cone_hit(u1x, u1y, u2x, u2y, _cross(-u2x, -u2y, u1x, u1y) > 0, dx, dy, eps)
+    return _cone_hit(u1x, u1y, u2x, u2y, _cross(-u2x, -u2y, u1x, u1y) > 0, dx, dy, ax, ay, eps)
 
 
-def _cone_hit(u1x, u1y, u2x, u2y, convex, dx, dy, eps) -> np.ndarray:
+def _cone_hit(u1x, u1y, u2x, u2y, convex, dx, dy, ax, ay, eps) -> np.ndarray:
     """The cone test: interior on the left of the ring prev -> v -> next, u1 the unit vector
-    v -> next, u2 the unit vector v -> prev.
+    v -> next, u2 the unit vector v -> prev; the segment passes through v in direction d, with
+    length lf after v and lb before it (v at (ax, ay) from the segment's start).
 
-    With unit d, c1 = u1 x d and c2 = d x u2: at a convex vertex d or -d is strictly inside when
-    c1 and c2 are both beyond eps with the same sign; at a reflex vertex the interior is all but
-    the closed exterior cone from u2 to u1, which d and -d both avoid only when d runs along both
-    edges (|c1|, |c2| <= eps)."""
+    With unit d, c1 = u1 x d and c2 = d x u2: at a convex vertex the part after v enters when c1
+    and c2 are both positive, the part before v when both are negative; at a reflex vertex the
+    interior is all but the closed exterior cone from u2 to u1, entered by the part after v when
+    c1 or c2 is positive, by the part before v when one is negative. "Enters" means deeper than
+    the tolerance: a part of length l at sine c from an edge reaches l * c from it, so c must
+    exceed eps / l. (A plain angular eps wrongly blocked a segment leaving a corner along a
+    bevel edge a few eps long: its neighbour vertex was "on" the segment, at 0.17 rad.)"""
     n = np.hypot(dx, dy) + 1e-300
     dx, dy = dx / n, dy / n
+    lb = ax * dx + ay * dy
+    tf = eps / np.maximum(n - lb, 1e-300)
+    tb = eps / np.maximum(lb, 1e-300)
     c1 = u1x * dy - u1y * dx
     c2 = dx * u2y - dy * u2x
-    inside_convex = ((c1 > eps) & (c2 > eps)) | ((c1 < -eps) & (c2 < -eps))
-    return np.where(convex, inside_convex, (np.abs(c1) > eps) | (np.abs(c2) > eps))
+    convex_hit = ((c1 > tf) & (c2 > tf)) | ((c1 < -tb) & (c2 < -tb))
+    reflex_hit = (c1 > tf) | (c2 > tf) | (c1 < -tb) | (c2 < -tb)
+    return np.where(convex, convex_hit, reflex_hit)
