@@ -145,7 +145,6 @@ class VisibilityMap:
         self._ex, self._ey = self._bx - self._ax, self._by - self._ay
         e2 = self._ex * self._ex + self._ey * self._ey
         self._tol_e = self.eps * np.sqrt(e2)  # |cross(e, x - a)| below this: x is on the edge's line
-        self._inv_e2 = 1.0 / np.maximum(e2, 1e-300)
         self._up = self._by > self._ay  # upward edges (the ray-crossing parity of straight_free)
         # Complex forms for the one-segment test (_segment): a, e and -conj(e).
         self._ac = self._ax + 1j * self._ay
@@ -211,7 +210,7 @@ class VisibilityMap:
     def _segment(self, px: float, py: float, qx: float, qy: float):
         """One segment p-q against every edge: (blocked, o3, o4), o3 and o4 per edge.
 
-        The lean form of _crossings for one segment (the straight-line test of every query and
+        The lean form of _fan_blocked for one segment (the straight-line test of every query and
         OMPL's motion checks): complex products give two crosses (and a dot) per operation, and
         the tolerance tests run only on the few edges whose signs already differ."""
         E = len(self._ac)
@@ -231,13 +230,10 @@ class VisibilityMap:
         tol_s = self.eps * math.sqrt(L2)
         self.stats["segment_pairs"] += E
         # A proper crossing has strictly opposite signs on both lines: the products pick the
-        # candidates, the tolerances of _crossings decide.
+        # candidates, the tolerances (_proper) decide.
         c = np.flatnonzero((o1 * o2 < 0) & (o3 * o4 < 0))
-        if len(c):
-            a1, a2, a3, a4, te = o1[c], o2[c], o3[c], o4[c], self._tol_e[c]
-            if ((np.maximum(a1, a2) > tol_s) & (np.minimum(a1, a2) < -tol_s) &
-                    (np.maximum(a3, a4) > te) & (np.minimum(a3, a4) < -te)).any():
-                return True, o3, o4
+        if len(c) and _proper(o1[c], o2[c], o3[c], o4[c], tol_s, self._tol_e[c]).any():
+            return True, o3, o4
         on = np.flatnonzero(np.abs(o1) <= tol_s)
         if len(on):
             t = P1.real[on]
@@ -250,13 +246,17 @@ class VisibilityMap:
     def _fan_blocked(self, p: np.ndarray, qx: np.ndarray, qy: np.ndarray) -> np.ndarray:
         """For K segments from the one point p to (qx[k], qy[k]), True where one enters an
         obstacle's interior. Dense K x E arrays up to _DENSE_LIMIT pairs, above that only the
-        (segment, edge) pairs the angular pre-filter keeps (_fan_pairs)."""
+        (segment, edge) pairs the angular pre-filter keeps (_fan_pairs).
+
+        Candidates first: a proper crossing needs strictly opposite signs of o1, o2 and of o3, o4
+        (sign products), a vertex on the segment |o1| <= eps|D|; the tolerance tests run on those
+        few pairs only (17 instead of 30 whole-array operations per batch)."""
         K, E = len(qx), len(self._ax)
+        out = np.zeros(K, bool)
         if K == 0 or E == 0:
-            return np.zeros(K, bool)
+            return out
         px, py = float(p[0]), float(p[1])
         Ax, Ay = self._ax - px, self._ay - py
-        Bx, By = self._bx - px, self._by - py
         ex, ey, tol_e = self._ex, self._ey, self._tol_e
         o3 = ey * Ax - ex * Ay  # per edge: the fan's common start p
         Dx, Dy = qx - px, qy - py
@@ -264,36 +264,53 @@ class VisibilityMap:
         tol_s = self.eps * np.sqrt(L2)
         if K * E <= _DENSE_LIMIT:
             self.stats["segment_pairs"] += K * E
-            proper, on, _ = _crossings(Ax, Ay, Bx, By, o3, ex, ey, tol_e, Dx[:, None], Dy[:, None],
-                                       L2[:, None], tol_s[:, None])
-            if on.any():
-                kk, ee = np.nonzero(on)
+            dx, dy = Dx[:, None], Dy[:, None]
+            o1 = dx * Ay - dy * Ax  # (K, E)
+            De = dx * ey - dy * ex
+            o2, o4 = o1 + De, o3 - De
+            kk, ee = np.nonzero((o1 * o2 < 0) & (o3 * o4 < 0))
+            if len(kk):
+                hit = _proper(o1[kk, ee], o2[kk, ee], o3[ee], o4[kk, ee], tol_s[kk], tol_e[ee])
+                out[kk[hit]] = True
+            kk, ee = np.nonzero(np.abs(o1) <= tol_s[:, None])
+        else:
+            k, e = self._fan_pairs(Ax, Ay, self._bx - px, self._by - py, Dx, Dy, L2)
+            self.stats["segment_pairs"] += len(k)
+            if len(k) == 0:
+                return out
+            dx, dy, o3e = Dx[k], Dy[k], o3[e]
+            o1 = dx * Ay[e] - dy * Ax[e]
+            De = dx * ey[e] - dy * ex[e]
+            o2, o4 = o1 + De, o3e - De
+            c = np.flatnonzero((o1 * o2 < 0) & (o3e * o4 < 0))
+            if len(c):
+                hit = _proper(o1[c], o2[c], o3e[c], o4[c], tol_s[k[c]], tol_e[e[c]])
+                out[k[c[hit]]] = True
+            c = np.flatnonzero(np.abs(o1) <= tol_s[k])
+            kk, ee = k[c], e[c]
+        # Vertex a strictly between the ends (A . D beyond eps|D| from 0 and |D|^2): cone test.
+        if len(kk):
+            t = Ax[ee] * Dx[kk] + Ay[ee] * Dy[kk]
+            ts = tol_s[kk]
+            sel = (t > ts) & (t < L2[kk] - ts) & ~out[kk]
+            if sel.any():
+                kk, ee = kk[sel], ee[sel]
                 hit = _enters_cone(self, ee, Dx[kk], Dy[kk], Ax[ee], Ay[ee])
-                proper[kk[hit], ee[hit]] = True
-            return proper.any(axis=1)
-        k, e = self._fan_pairs(Ax, Ay, Bx, By, Dx, Dy, L2)
-        self.stats["segment_pairs"] += len(k)
-        out = np.zeros(K, bool)
-        if len(k) == 0:
-            return out
-        proper, on, _ = _crossings(Ax[e], Ay[e], Bx[e], By[e], o3[e], ex[e], ey[e], tol_e[e], Dx[k], Dy[k],
-                                   L2[k], tol_s[k])
-        if on.any():
-            idx = np.flatnonzero(on)
-            ee = e[idx]
-            hit = _enters_cone(self, ee, Dx[k[idx]], Dy[k[idx]], Ax[ee], Ay[ee])
-            proper[idx[hit]] = True
-        out[k[proper]] = True
+                out[kk[hit]] = True
         return out
 
     def _fan_pairs(self, Ax, Ay, Bx, By, Dx, Dy, L2):
         """Candidate (segment, edge) pairs of a fan (edges and segment ends relative to its start):
         an edge can only meet a segment whose direction lies within the edge's angular extent seen
-        from the start (+-1e-9 rad), and which reaches at least as far as the edge's nearest point.
-        Directions sorted once, each edge's interval found with searchsorted."""
+        from the start (+-1e-9 rad). Directions sorted once, each edge's interval found with
+        searchsorted."""
+        K = len(Dx)
         ang = np.arctan2(Dy, Dx)
         order = np.argsort(ang)
         A = ang[order]
+        # The sorted directions three times (shifted by -2 pi, 0, 2 pi): an interval that wraps
+        # around +-pi is then one range of this array, read modulo K.
+        A3 = np.concatenate((A - 2 * np.pi, A, A + 2 * np.pi))
         ta, tb = np.arctan2(Ay, Ax), np.arctan2(By, Bx)
         # The edge's interval, counter-clockwise from lo over w (< pi unless the start is on it).
         lo, hi = np.minimum(ta, tb), np.maximum(ta, tb)
@@ -301,33 +318,17 @@ class VisibilityMap:
         wr = w > np.pi
         lo = np.where(wr, hi, lo)
         w = np.where(wr, 2 * np.pi - w, w)
-        # Nearest point of each edge from the start: edges beyond the longest segment are out.
-        t = np.minimum(np.maximum(-(Ax * self._ex + Ay * self._ey) * self._inv_e2, 0.0), 1.0)
-        nx, ny = Ax + t * self._ex, Ay + t * self._ey
-        near2 = nx * nx + ny * ny
-        Lmax2 = float(L2.max())
-        eidx = np.flatnonzero(near2 <= Lmax2)
-        near = np.sqrt(near2[eidx])
-        lo = lo[eidx] - 1e-9
-        hi = lo + w[eidx] + 2e-9
-        wrap = hi > np.pi
-        # Split wrapping intervals into [lo, pi] and [-pi, hi - 2 pi].
-        e_all = np.concatenate([eidx, eidx[wrap]])
-        n_all = np.concatenate([near, near[wrap]])
-        lo_all = np.concatenate([lo, np.full(int(wrap.sum()), -np.pi - 1e-9)])
-        hi_all = np.concatenate([np.minimum(hi, np.pi + 1e-9), hi[wrap] - 2 * np.pi])
-        st = np.searchsorted(A, lo_all, "left")
-        cnt = np.maximum(np.searchsorted(A, hi_all, "right") - st, 0)
+        # (A reach filter, dropping pairs whose segment ends before the edge's nearest point, cost
+        # more than it saved: it kept 75 % of the pairs on rect-200.)
+        st = np.searchsorted(A3, lo - 1e-9, "left")
+        cnt = np.searchsorted(A3, lo + (w + 1e-9), "right") - st
         total = int(cnt.sum())
         if total == 0:
             return np.zeros(0, np.int64), np.zeros(0, np.int64)
         csum = np.cumsum(cnt)
-        e = np.repeat(e_all, cnt)
-        k = order[np.arange(total) + np.repeat(st - (csum - cnt), cnt)]
-        # Drop pairs whose segment ends before the edge begins.
-        Lmax = math.sqrt(Lmax2)
-        reach = np.sqrt(L2[k]) >= np.repeat(n_all, cnt) - 1e-9 * (1 + Lmax)
-        return k[reach], e[reach]
+        e = np.repeat(np.arange(len(lo)), cnt)
+        k = order[(np.arange(total) + np.repeat(st - (csum - cnt), cnt)) % K]
+        return k, e
 
     def _blocked_segments(self, P: np.ndarray, Q: np.ndarray, ea, eb, vp) -> np.ndarray:
         """For K segments P[k]-Q[k] with different starts, True where one enters the interior of
@@ -338,17 +339,17 @@ class VisibilityMap:
         if K == 0 or E == 0:
             return out
         self.stats["segment_pairs"] += K * E
-        ax, ay, bx, by = ea[:, 0], ea[:, 1], eb[:, 0], eb[:, 1]
-        ex, ey = bx - ax, by - ay
+        ax, ay = ea[:, 0], ea[:, 1]
+        ex, ey = eb[:, 0] - ax, eb[:, 1] - ay
         tol_e = self.eps * np.sqrt(ex * ex + ey * ey)
         step = max(1, _CHUNK_PAIRS // E)
         for c0 in range(0, K, step):
             px, py = P[c0:c0 + step, 0:1], P[c0:c0 + step, 1:2]
             Dx, Dy = Q[c0:c0 + step, 0:1] - px, Q[c0:c0 + step, 1:2] - py
-            Ax, Ay, Bx, By = ax - px, ay - py, bx - px, by - py
+            Ax, Ay = ax - px, ay - py
             o3 = ey * Ax - ex * Ay
             L2 = Dx * Dx + Dy * Dy
-            proper, on, _ = _crossings(Ax, Ay, Bx, By, o3, ex, ey, tol_e, Dx, Dy, L2, self.eps * np.sqrt(L2))
+            proper, on = _crossings(Ax, Ay, o3, ex, ey, tol_e, Dx, Dy, L2, self.eps * np.sqrt(L2))
             if on.any():
                 kk, ee = np.nonzero(on)
                 hit = _enters_cone_at(ea[ee], vp[ee], eb[ee], Dx[kk, 0], Dy[kk, 0], Ax[kk, ee], Ay[kk, ee], self.eps)
@@ -488,18 +489,23 @@ class VisibilityMap:
         raise NoRouteError("no route: start and goal are not connected (search exhausted)")
 
 
-def _crossings(Ax, Ay, Bx, By, o3, ex, ey, tol_e, Dx, Dy, L2, tol_s):
-    """(proper, on, o4) for segments D from p and edges A -> B relative to p (see the comment
-    above segment_free; any broadcastable shapes): proper crossings, vertex a on the segment
-    strictly between its ends (then the cone test decides), and o4 = e x (q - a)."""
+def _proper(a1, a2, a3, a4, ts, te) -> np.ndarray:
+    """Proper crossing with tolerances: o1, o2 beyond +-eps|D| with opposite signs, and o3, o4
+    beyond +-eps|e| with opposite signs (same-shaped or broadcastable arrays)."""
+    return (np.maximum(a1, a2) > ts) & (np.minimum(a1, a2) < -ts) & \
+           (np.maximum(a3, a4) > te) & (np.minimum(a3, a4) < -te)
+
+
+def _crossings(Ax, Ay, o3, ex, ey, tol_e, Dx, Dy, L2, tol_s):
+    """(proper, on) for segments D from p and edges from A (relative to p) along e (see the
+    comment above segment_free; any broadcastable shapes): proper crossings, and vertex a on the
+    segment strictly between its ends (then the cone test decides)."""
     o1 = Dx * Ay - Dy * Ax
-    o2 = Dx * By - Dy * Bx
-    o4 = o3 + (ex * Dy - ey * Dx)
-    proper = (np.maximum(o1, o2) > tol_s) & (np.minimum(o1, o2) < -tol_s) & \
-             (np.maximum(o3, o4) > tol_e) & (np.minimum(o3, o4) < -tol_e)
+    De = Dx * ey - Dy * ex  # D x e: o2 = D x (A + e), o4 = e x (D - A) = o3 - D x e
+    proper = _proper(o1, o1 + De, o3, o3 - De, tol_s, tol_e)
     t = Ax * Dx + Ay * Dy
     on = (np.abs(o1) <= tol_s) & (t > tol_s) & (t < L2 - tol_s)
-    return proper, on, o4
+    return proper, on
 
 
 def _enters_cone(vm: "VisibilityMap", ee, dx, dy, ax, ay) -> np.ndarray:
