@@ -483,11 +483,12 @@ class VisibilityMap:
 
 
 def _ring_edges(polygons: Sequence[Polygon]):
-    """Every ring of the polygons (exteriors, then each polygon's holes; interiors on the left of
-    their edges, rings of fewer than 3 vertices skipped, as geometry.rings): the edge start
-    vertices ``ea`` (E, 2), the next ``eb`` and previous ``vp`` vertices, whether ``ea`` is a
-    convex vertex (geometry.convex_mask) and the edge count of each polygon. Vectorized: per-ring
-    np.roll cost ~1.5 ms of a 200-rectangle map's build."""
+    """Every ring of the polygons (each exterior, then its holes; rings not closed, interiors on
+    the left of their edges as enlarge orients them, rings of fewer than 3 vertices skipped): the
+    edge start vertices ``ea`` (E, 2), the next ``eb`` and previous ``vp`` vertices, whether
+    ``ea`` is a convex vertex (interior turns left there: an auxiliary corner) and the edge count
+    of each polygon. Vectorized: a loop of np.roll per ring cost ~1.5 ms of a 200-rectangle
+    map's build."""
     rr, pidx = shapely.get_rings(np.asarray(polygons, dtype=object), return_index=True)
     coords, ridx = shapely.get_coordinates(rr, return_index=True)
     counts = np.bincount(ridx, minlength=len(rr))  # vertices + the closing repeat
