@@ -159,7 +159,6 @@ class VisibilityMap:
         self._rpx, self._rpy = self._cprev[:, 0] - self._cx, self._cprev[:, 1] - self._cy
         self._rnx, self._rny = self._cnext[:, 0] - self._cx, self._cnext[:, 1] - self._cy
 
-
     # -- segment tests ----------------------------------------------------------------------------
     #
     # A segment p-q enters an obstacle's interior iff it properly crosses one of its edges a-b, or
