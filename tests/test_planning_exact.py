@@ -121,6 +121,13 @@ def test_exact_length_matches_oracle_on_crowded_maps(seed):
     check_world(seed, 25, 0.3, size=(1, 10))
 
 
+def test_segment_leaving_a_corner_along_a_bevel_a_few_eps_long_is_free():
+    # A needle of a star polygon, enlarged by the tolerance only, is bevelled into two corners
+    # 5.8e-7 apart (eps 1e-7). The route leaves one of them almost along the bevel; the other
+    # corner was "on" that segment and its cone test (an angular eps) called it blocked: no route.
+    check_world(56981, 3, 0.0)
+
+
 def check_world(seed, n, radius, size=(2, 30)):
     polys = random_world(seed, n, size=size)
     pm = PlanningMap(polys, robot_radius=radius, bounds=(0, 0, SIZE, SIZE))

@@ -4,6 +4,7 @@ the ``sbplan plan`` command (subprocess: exit codes, one-line errors, no OMPL lo
 from __future__ import annotations
 
 import json
+import math
 import subprocess
 import sys
 from pathlib import Path
@@ -12,6 +13,7 @@ import cv2
 import numpy as np
 import pytest
 import shapely
+import shapely.affinity
 from shapely.geometry import LineString, box
 
 from sbplan import export
@@ -209,3 +211,47 @@ def test_bench_plan_quick_runs_and_writes_an_ompl_log(tmp_path):
     assert row["world"] == "rect-5" and row["queries"] == 3 and row["obstacles"] == 5
     assert set(row["ompl"]) == {"rrt-connect"}
     assert "AuxCorner" in log.read_text() and "RRTConnect" in log.read_text()
+
+
+def write_map(folder, occupied, *, resolution, origin):
+    """A nav2 map (PGM + map.yaml) of a boolean (row, col) mask, row 0 at the top."""
+    folder.mkdir(parents=True, exist_ok=True)
+    cv2.imwrite(str(folder / "map.pgm"), np.where(occupied, 0, 254).astype(np.uint8))
+    (folder / "map.yaml").write_text(
+        "image: map.pgm\nresolution: {}\norigin: [{}, {}, {}]\nnegate: 0\noccupied_thresh: 0.65\n"
+        "free_thresh: 0.196\n".format(resolution, *origin))
+    return folder / "map.yaml"
+
+
+@pytest.mark.parametrize("yaw", [math.pi / 2, 0.3, -2.0])
+def test_nav2_map_with_a_rotated_origin_rotates_the_cells_about_it(tmp_path, yaw):
+    occ = np.zeros((6, 8), bool)
+    occ[1, 2] = occ[4, 5:7] = True
+    ox, oy, res = 1.0, 2.0, 0.5
+    got = load_obstacles(write_map(tmp_path / "r", occ, resolution=res, origin=(ox, oy, yaw)))
+    flat = load_obstacles(write_map(tmp_path / "f", occ, resolution=res, origin=(0.0, 0.0, 0.0)))
+    rotate = lambda g: shapely.affinity.translate(shapely.affinity.rotate(g, yaw, origin=(0, 0), use_radians=True), ox, oy)
+    extent = rotate(box(0, 0, 8 * res, 6 * res))
+    assert got.bounds == pytest.approx(extent.bounds, abs=1e-12)
+    # The occupied cells, rotated about the origin; the rest of the bounding box is an obstacle.
+    cells = shapely.union_all([rotate(q) for q in flat.polygons])
+    want = cells.union(box(*extent.bounds).difference(extent))
+    assert shapely.union_all(got.polygons).symmetric_difference(want).area < 1e-9
+    # Cell (row 1, col 2) has its centre at (2.5, 4.5) * res in the image frame (y up from the
+    # bottom row), i.e. at the origin + R(yaw) (1.25, 2.25) in the world.
+    c = np.array([ox, oy]) + np.array([[math.cos(yaw), -math.sin(yaw)], [math.sin(yaw), math.cos(yaw)]]) @ [1.25, 2.25]
+    assert shapely.union_all(got.polygons).contains(shapely.Point(c))
+    # A route across the map, past that cell, stays on the map and off the cells.
+    pm = PlanningMap(got.polygons, robot_radius=0.1, bounds=got.bounds)
+    a = rotate(shapely.Point(0.3, 2.25)).coords[0]
+    b = rotate(shapely.Point(3.7, 2.25)).coords[0]
+    route = pm.solve(a, b)
+    line = LineString(route.waypoints)
+    assert len(route.waypoints) > 2 and route.status == "exact"
+    assert extent.buffer(1e-9).contains(line)
+    assert line.distance(cells) >= 0.1 - 1e-6
+
+
+def test_nav2_map_with_a_non_finite_yaw_is_a_map_format_error(tmp_path):
+    with pytest.raises(MapFormatError, match="origin"):
+        load_obstacles(write_map(tmp_path, np.zeros((3, 3), bool), resolution=1.0, origin=(0.0, 0.0, "nan")))

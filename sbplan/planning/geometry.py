@@ -1,4 +1,4 @@
-"""Polygon preparation for the planners: enlargement, ring arrays, corner classification.
+"""Polygon preparation for the planners: validation and enlargement.
 
 All points are world coordinates ``(x, y)`` (metres, or pixels with a scale), y up.
 """
@@ -68,24 +68,3 @@ def enlarge(polygons: Sequence[Polygon], distance: float) -> list[Polygon]:
             if isinstance(g, Polygon) and not g.is_empty and g.area > 0:
                 out.append(orient(g.simplify(0.0), 1.0))
     return out
-
-
-def rings(polygons: Sequence[Polygon]) -> list[np.ndarray]:
-    """Every ring (exterior and holes) as an (M, 2) float64 array, not closed, interior on the
-    left of each directed edge (shapely's CCW exterior / CW holes)."""
-    out = []
-    for p in polygons:
-        for ring in (p.exterior, *p.interiors):
-            c = np.asarray(ring.coords, dtype=float)[:-1]
-            if len(c) >= 3:
-                out.append(c)
-    return out
-
-
-def convex_mask(ring: np.ndarray) -> np.ndarray:
-    """True at the ring's convex vertices (interior on the left): the auxiliary corners."""
-    prev = np.roll(ring, 1, axis=0)
-    nxt = np.roll(ring, -1, axis=0)
-    a = ring - prev
-    b = nxt - ring
-    return (a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]) > 0

@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 import shapely
+import shapely.affinity
 from shapely.geometry import Polygon, box
 
 from ..errors import ImageError, MapFormatError
@@ -186,8 +187,9 @@ def _from_nav2(p: Path) -> ObstacleSet:
         raise MapFormatError(f"{p}: resolution, origin, negate and thresholds must be numbers") from None
     if not math.isfinite(res) or res <= 0 or len(origin) < 2:
         raise MapFormatError(f"{p}: resolution must be > 0 and origin [x, y, yaw]")
-    if len(origin) > 2 and abs(origin[2]) > 1e-9:
-        raise MapFormatError(f"{p}: rotated map origins (yaw != 0) are not supported")
+    yaw = origin[2] if len(origin) > 2 else 0.0
+    if not all(math.isfinite(v) for v in origin):
+        raise MapFormatError(f"{p}: origin [x, y, yaw] must be finite numbers")
     mode = str(data.get("mode", "trinary"))
     img_path = (p.parent / str(data["image"])).resolve()
     try:
@@ -199,9 +201,31 @@ def _from_nav2(p: Path) -> ObstacleSet:
     if mode != "raw":
         occupied |= (occ >= free_t) & ~occupied  # unknown counts as obstacle
     h, w = img.shape
-    polys = occupancy_polygons(occupied, resolution=res, origin=(origin[0], origin[1]))
-    bounds = (origin[0], origin[1], origin[0] + w * res, origin[1] + h * res)
+    if abs(yaw) <= 1e-9:
+        polys = occupancy_polygons(occupied, resolution=res, origin=(origin[0], origin[1]))
+        bounds = (origin[0], origin[1], origin[0] + w * res, origin[1] + h * res)
+        return ObstacleSet(polys, bounds, str(p))
+    polys, bounds = _rotated_map(occupied, res, origin[0], origin[1], yaw)
     return ObstacleSet(polys, bounds, str(p))
+
+
+def _rotated_map(occupied: np.ndarray, res: float, ox: float, oy: float, yaw: float) -> tuple[list, tuple]:
+    """A nav2 map whose origin pose has yaw != 0: the image's lower-left corner is at (ox, oy) and
+    its x axis (columns) points at angle yaw, counter-clockwise. The occupied cells are rotated
+    about the origin. The planner's workspace is an axis-aligned rectangle, so the bounds become
+    the rotated image's bounding box and its parts outside the image count as obstacles (space
+    the map says nothing about, like unknown cells): routes stay on the map, as with yaw 0."""
+    c, s_ = math.cos(yaw), math.sin(yaw)
+    m = [c, -s_, s_, c, ox, oy]  # shapely's affine [a, b, d, e, xoff, yoff]: x' = a x + b y + xoff
+    h, w = occupied.shape
+    polys = [shapely.affinity.affine_transform(q, m) for q in occupancy_polygons(occupied, resolution=res)]
+    extent = shapely.affinity.affine_transform(box(0.0, 0.0, w * res, h * res), m)
+    bounds = tuple(float(v) for v in extent.bounds)
+    outside = box(*bounds).difference(extent)
+    # Drop the rounding slivers left where the image is (nearly) axis-aligned (yaw near k pi/2).
+    tiny = 1e-9 * extent.area
+    polys += [q for q in getattr(outside, "geoms", [outside]) if isinstance(q, Polygon) and q.area > tiny]
+    return polys, bounds
 
 
 def occupancy_polygons(occupied: np.ndarray, *, resolution: float = 1.0,

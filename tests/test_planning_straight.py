@@ -1,0 +1,190 @@
+"""The straight-line fast path of PlanningMap.solve (VisibilityMap.straight_free).
+
+It must answer exactly what the full path (shapely endpoint checks, then the search) answers:
+the same route, the same typed errors, the same escapes. Degenerate cases (a segment grazing a
+corner, running along an enlarged edge, ending on one) and random worlds (hypothesis).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+import pytest
+import shapely
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from shapely.geometry import LineString, box
+
+import sbplan
+from sbplan.errors import (GoalInObstacleError, NoRouteError, OutOfBoundsError, PlanningError,
+                           StartInObstacleError)
+from sbplan.planning import PlanningMap
+
+from test_planning_exact import random_world
+
+B = (0.0, 0.0, 100.0, 100.0)
+
+
+def full(pm: PlanningMap, s, g):
+    """The answer of the full path (no fast path): a Route or the PlanningError class."""
+    try:
+        return pm._solve_full(np.asarray(s, float), np.asarray(g, float), t0=time.perf_counter(),
+                              time_limit=10.0, planner="aux-corner")
+    except PlanningError as e:
+        return type(e)
+
+
+def answer(pm: PlanningMap, s, g):
+    try:
+        return pm.solve(s, g, time_limit=10.0)
+    except PlanningError as e:
+        return type(e)
+
+
+def assert_same(a, b):
+    if isinstance(b, type):
+        assert a is b
+    else:
+        assert not isinstance(a, type), a
+        assert a.status == b.status
+        np.testing.assert_array_equal(a.waypoints, b.waypoints)
+        assert a.length == b.length
+
+
+def square_map(radius=1.0):
+    pm = PlanningMap([box(40, 40, 60, 60)], robot_radius=radius, bounds=B)
+    (big,) = pm.enlarged
+    x0, y0, x1, y1 = big.bounds  # the enlarged square: 39 - tol .. 61 + tol
+    return pm, (x0, y0, x1, y1)
+
+
+def test_a_free_segment_is_the_route_and_needs_no_search_state():
+    pm, _ = square_map()
+    route = pm.solve((10, 10), (90, 20))
+    assert route.status == "exact" and len(route.waypoints) == 2
+    assert route.length == pytest.approx(math.hypot(80, 10), rel=1e-15)
+    assert pm.vmap.stats["expansions"] == 0 and not (pm.vmap._vis != 0).any()
+    assert route.map is pm and route.planner == "aux-corner"
+    np.testing.assert_array_equal(route.goal, (90, 20))
+
+
+def test_segment_grazing_a_corner_is_free():
+    pm, (x0, y0, x1, y1) = square_map()
+    # Through the lower-left enlarged corner, perpendicular to the diagonal: touches it only.
+    s, g = (x0 - 20, y0 + 20), (x0 + 20, y0 - 20)
+    assert LineString([s, g]).distance(box(40, 40, 60, 60)) == pytest.approx(math.sqrt(2) * pm.clearance, rel=1e-9)
+    assert pm.vmap.straight_free(s, g)
+    route = pm.solve(s, g)
+    assert len(route.waypoints) == 2
+    assert_same(route, full(pm, s, g))
+    # Rotated a little into the square: blocked, a detour around the corner.
+    s2 = (x0 - 20, y0 + 20.5)
+    assert not pm.vmap.straight_free(s2, g)
+    route = pm.solve(s2, g)
+    assert len(route.waypoints) == 3
+    assert_same(route, full(pm, s2, g))
+
+
+def test_segment_along_an_enlarged_edge_and_ending_on_one_is_free():
+    pm, (x0, y0, x1, y1) = square_map()
+    for s, g in [((x0 - 10, y0), (x1 + 10, y0)),  # along the bottom edge, past both corners
+                 ((x0 - 10, 50), (x0, 50)),  # ends on the left edge
+                 ((x0, 50), (x0, 90)),  # starts on the left edge, runs along it and beyond
+                 ((x0, y0), (10, 10))]:  # starts on a corner
+        route = pm.solve(s, g)
+        assert len(route.waypoints) == 2 and route.status == "exact", (s, g)
+        assert_same(route, full(pm, s, g))
+
+
+def test_segment_through_the_square_is_blocked_even_between_two_corners():
+    pm, (x0, y0, x1, y1) = square_map()
+    # The diagonal through two opposite corners: it enters the interior.
+    s, g = (x0 - 10, y0 - 10), (x1 + 10, y1 + 10)
+    assert not pm.vmap.straight_free(s, g)
+    route = pm.solve(s, g)
+    assert len(route.waypoints) == 3
+    assert_same(route, full(pm, s, g))
+
+
+@pytest.mark.parametrize("s, g, err", [
+    ((50, 50), (10, 10), StartInObstacleError),  # inside the real obstacle
+    ((10, 10), (40, 50), GoalInObstacleError),  # on the real obstacle's boundary
+    ((-1, 10), (10, 10), OutOfBoundsError),
+    ((10, 10), (10, 100.5), OutOfBoundsError),
+])
+def test_endpoints_in_obstacles_or_outside_raise_the_same_typed_errors(s, g, err):
+    pm, _ = square_map()
+    with pytest.raises(err):
+        pm.solve(s, g)
+    assert full(pm, s, g) is err
+    with pytest.raises(err):
+        sbplan.plan([box(40, 40, 60, 60)], s, g, robot_radius=1.0, bounds=B)
+
+
+def test_endpoint_within_the_clearance_escapes_instead():
+    pm, _ = square_map()
+    # (39.5, 50) is outside the real square but inside the enlarged one: no straight route.
+    assert not pm.vmap.straight_free((39.5, 50), (10, 50))
+    route = pm.solve((39.5, 50), (10, 50))
+    assert route.status == "approximate" and len(route.waypoints) == 3
+    assert_same(route, full(pm, (39.5, 50), (10, 50)))
+
+
+def test_overlapping_and_holed_obstacles():
+    room = box(30, 30, 70, 70).difference(box(35, 35, 65, 65))
+    pm = PlanningMap([room, box(45, 45, 55, 55), box(50, 50, 60, 60)], robot_radius=0.5, bounds=B)
+    for s, g in [((40, 40), (40, 60)),  # inside the room, free
+                 ((40, 40), (60, 42)),  # inside the room, free
+                 ((40, 40), (60, 60)),  # through the overlapping boxes
+                 ((10, 10), (40, 40)),  # through the room's wall
+                 ((50, 50), (10, 10))]:  # start in the overlap
+        assert_same(answer(pm, s, g), full(pm, s, g))
+    assert len(pm.solve((40, 40), (40, 60)).waypoints) == 2
+
+
+def test_empty_map_and_no_route_are_unchanged():
+    pm = PlanningMap([], robot_radius=0.5, bounds=B)
+    assert len(pm.solve((1, 1), (99, 99)).waypoints) == 2
+    wall = [box(40, -1, 50, 101)]
+    pm = PlanningMap(wall, robot_radius=0.0, bounds=B)
+    with pytest.raises(NoRouteError):
+        pm.solve((10, 50), (90, 50))
+
+
+@st.composite
+def world_and_points(draw):
+    seed = draw(st.integers(0, 2**31 - 1))
+    n = draw(st.integers(1, 8))
+    radius = draw(st.sampled_from([0.0, 0.5, 2.0]))
+    return seed, n, radius
+
+
+@settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(case=world_and_points())
+def test_fast_path_agrees_with_the_full_path_and_shapely(case):
+    seed, n, radius = case
+    polys = random_world(seed, n)
+    pm = PlanningMap(polys, robot_radius=radius, bounds=B)
+    rng = np.random.default_rng(seed)
+    corners = np.concatenate([np.zeros((0, 2))] + [np.asarray(p.exterior.coords)[:-1] for p in pm.enlarged])
+    pts = list(rng.uniform(-1, 101, (16, 2)))
+    # Degenerate ends: enlarged corners, and points on enlarged edges.
+    for _ in range(8 if len(corners) else 0):
+        i = rng.integers(len(corners))
+        pts.append(corners[i])
+        pts.append(corners[i] + rng.uniform() * (corners[(i + 1) % len(corners)] - corners[i]))
+    for k in range(0, len(pts) - 1, 2):
+        s, g = pts[k], pts[k + 1]
+        fast = answer(pm, s, g)
+        assert_same(fast, full(pm, s, g))
+        ok_bounds = pm.in_bounds(s) and pm.in_bounds(g)
+        if not ok_bounds:
+            continue
+        # Away from every boundary (1e-6 of the map) shapely decides without tolerances: the
+        # fast path must then be taken exactly when the segment is free.
+        seg = LineString([s, g])
+        if all(seg.distance(q.boundary) > 1e-4 for q in pm.enlarged):
+            free = not any(seg.intersects(q) for q in pm.enlarged)
+            assert pm.vmap.straight_free(s, g) == free
