@@ -281,7 +281,7 @@ def plot(result: dict[str, Any], *, width: int = 1600, height: int = 1000) -> np
     left, right, top = 110, 30, 70
     s = result["setup"]
     title = (f"sbplan bench detect: {s['size'][0]}x{s['size'][1]}, {s['grid'][0]}x{s['grid'][1]} cells, "
-             f"{s['scenes']} scenes per condition, 1 thread")
+             f"{s['scenes']} scene{'s' if s['scenes'] != 1 else ''} per condition, 1 thread")
     cv2.putText(img, title, (left, 35), font, 0.8, (0, 0, 0), 2, cv2.LINE_AA)
     panel_h = (height - top - 150) // 2
     panels = [("F1", "f1", top, lambda v: v, [0, 0.25, 0.5, 0.75, 1.0], "{:.2f}"),
@@ -318,6 +318,13 @@ def plot(result: dict[str, Any], *, width: int = 1600, height: int = 1000) -> np
                 cv2.rectangle(img, (x0, y), (int(round(x0 + bar)) - 1, y1), _COLOURS[m], -1)
             if key == "f1":
                 continue
+            target = by[(c, "aruco-grid")]["median_ms"] / 5
+            if not math.isnan(target):
+                # issue 6's bar: sbplan's time should stay below a fifth of the ArUco grid's
+                y = int(round(y1 - scale(target) * panel_h))
+                x0 = int(round(gx))
+                for xd in range(x0 - 4, int(round(gx + bar)) + 4, 8):
+                    cv2.line(img, (xd, y), (xd + 4, y), (0, 0, 0), 2)
             (tw, _), _ = cv2.getTextSize(c, font, 0.55, 1)
             cv2.putText(img, c, (int(left + (i + 0.5) * group - tw / 2), y1 + 24), font, 0.55, (0, 0, 0), 1,
                         cv2.LINE_AA)
@@ -326,6 +333,9 @@ def plot(result: dict[str, Any], *, width: int = 1600, height: int = 1000) -> np
         cv2.rectangle(img, (lx, height - 45), (lx + 24, height - 25), _COLOURS[m], -1)
         cv2.putText(img, m, (lx + 32, height - 28), font, 0.65, (0, 0, 0), 1, cv2.LINE_AA)
         lx += 60 + cv2.getTextSize(m, font, 0.65, 1)[0][0]
+    for xd in range(lx, lx + 24, 8):
+        cv2.line(img, (xd, height - 35), (xd + 4, height - 35), (0, 0, 0), 2)
+    cv2.putText(img, "aruco-grid / 5", (lx + 32, height - 28), font, 0.65, (0, 0, 0), 1, cv2.LINE_AA)
     return img
 
 
