@@ -26,8 +26,11 @@ _DENSE_LIMIT = 10_000
 _CHUNK_PAIRS = 1_000_000
 #: Maps with at most this many edges answer one-segment tests (straight_check, segment_free: the
 #: straight-line fast path, the search's first test, OMPL's motion checks) in plain Python over
-#: per-map tuples with bounding boxes (_scan); larger maps use the numpy form (_segment).
-_SCALAR_MAX_EDGES = 400
+#: per-map tuples with bounding boxes (_scan); larger maps use the numpy form (_segment). _scan
+#: was faster on every bench world (straight_check 3.4-14 us against 26-39 us, rect-200 included),
+#: but its tables cost ~20 us + 0.3 us per edge of build: they pay back within ~5 queries up to
+#: the 524 edges of map:crowded, after ~35 on rect-200's 800.
+_SCALAR_MAX_EDGES = 600
 #: Consecutive edges of one polygon per bounding box in _scan's tables.
 _SCAN_EDGES = 8
 
@@ -173,20 +176,20 @@ class VisibilityMap:
         of the numpy arrays, so both forms compute the same products."""
         cols = list(zip(self._ax.tolist(), self._ay.tolist(), self._by.tolist(), self._ex.tolist(),
                         self._ey.tolist(), self._tol_e.tolist(), self._up.tolist(), range(len(self._ax))))
-        bx = self._bx.tolist()
-        polys, start = [], 0
-        for n in self._pcount.tolist():
-            if n == 0:
-                continue
-            chunks = []
-            for c0 in range(start, start + n, _SCAN_EDGES):
-                edges = tuple(cols[c0:min(c0 + _SCAN_EDGES, start + n)])
-                xs = [e[0] for e in edges] + bx[c0:c0 + len(edges)]
-                ys = [e[1] for e in edges] + [e[2] for e in edges]
-                chunks.append((min(xs), min(ys), max(xs), max(ys), edges))
-            polys.append((min(c[0] for c in chunks), min(c[1] for c in chunks), max(c[2] for c in chunks),
-                          max(c[3] for c in chunks), tuple(chunks)))
-            start += n
+        # Chunk starts: every _SCAN_EDGES-th edge of each polygon (vectorized, like the boxes).
+        n = self._pcount[self._pcount > 0]
+        nch = (n + _SCAN_EDGES - 1) // _SCAN_EDGES
+        first = np.repeat(np.cumsum(nch) - nch, nch)
+        cs = np.repeat(self._pstart, nch) + _SCAN_EDGES * (np.arange(len(first)) - first)
+        ce = np.minimum(cs + _SCAN_EDGES, np.repeat(self._pstart + n, nch))
+        lo = np.minimum.reduceat(np.minimum(self._ea, self._eb), cs)  # (chunks, 2): x, y
+        hi = np.maximum.reduceat(np.maximum(self._ea, self._eb), cs)
+        pfirst = np.cumsum(nch) - nch
+        plo, phi = np.minimum.reduceat(lo, pfirst), np.maximum.reduceat(hi, pfirst)
+        chunks = [(x0, y0, x1, y1, tuple(cols[c0:c1]))
+                  for (x0, y0), (x1, y1), c0, c1 in zip(lo.tolist(), hi.tolist(), cs.tolist(), ce.tolist())]
+        polys = [(x0, y0, x1, y1, tuple(chunks[c0:c0 + k]))
+                 for (x0, y0), (x1, y1), c0, k in zip(plo.tolist(), phi.tolist(), pfirst.tolist(), nch.tolist())]
         return tuple(polys)
 
     # -- segment tests ----------------------------------------------------------------------------
@@ -252,8 +255,9 @@ class VisibilityMap:
         straight_check; bounding boxes only skip edges that cannot decide anything:
 
         - the segment part skips polygons and chunks whose vertex box misses the segment's box
-          grown by 4 eps: a proper crossing (signs beyond the tolerances, far above rounding)
-          needs the segments to meet, a vertex on the segment lies within eps of it;
+          grown by 4 eps (a proper crossing, signs beyond the tolerances, far above rounding,
+          needs the segments to meet; a vertex on the segment lies within eps of it), and
+          polygons whose box lies beyond 2 eps|D| on one side of the segment's line;
         - the parity of an end skips polygons and chunks whose vertices' y-range [ymin, ymax)
           does not hold the end's y: none of their edges straddles it (the half-open straddle
           test is exact).
@@ -275,8 +279,23 @@ class VisibilityMap:
             sy0, sy1 = qy - pad, py + pad
         seg, blocked, on, tested = True, False, None, 0
         hp = hq = cpp = cqq = False
+        # The segment's line, f(x, y) = D x ((x, y) - p) (o1 of a vertex): a polygon's box whose
+        # corners all lie beyond 2 tol_s on one side (rounding is far below tol_s) holds no edge
+        # that crosses the segment and no vertex on it.
+        m = 2 * tol_s
+        dxp, dyp = dx > 0, dy > 0
         for x0, y0, x1, y1, chunks in self._scan_polys:
             hs = seg and x0 <= sx1 and x1 >= sx0 and y0 <= sy1 and y1 >= sy0
+            if hs:
+                if dxp:
+                    fhi, flo = dx * (y1 - py), dx * (y0 - py)
+                else:
+                    fhi, flo = dx * (y0 - py), dx * (y1 - py)
+                if dyp:
+                    fhi, flo = fhi - dy * (x0 - px), flo - dy * (x1 - px)
+                else:
+                    fhi, flo = fhi - dy * (x1 - px), flo - dy * (x0 - px)
+                hs = flo <= m and fhi >= -m
             if ends:
                 hp = y0 <= py < y1
                 hq = y0 <= qy < y1
@@ -294,30 +313,36 @@ class VisibilityMap:
                     tested += len(edges)
                     for ax, ay, by, ex, ey, te, up, i in edges:
                         Ax, Ay = ax - px, ay - py
-                        o3 = ey * Ax - ex * Ay  # e x (p - a)
-                        De = dx * ey - dy * ex  # D x e
-                        o4 = o3 - De  # e x (q - a)
                         o1 = dx * Ay - dy * Ax  # D x A
+                        De = dx * ey - dy * ex  # D x e
                         o2 = o1 + De  # D x (A + e)
-                        if o1 * o2 < 0 and o3 * o4 < 0 and abs(o1) > tol_s and abs(o2) > tol_s and \
-                                abs(o3) > te and abs(o4) > te:
-                            if not ends:
-                                self.stats["segment_pairs"] += tested
-                                return True
-                            seg = cs = False
-                            blocked = True
-                        elif abs(o1) <= tol_s:
+                        o3 = None
+                        if o1 * o2 < 0:
+                            o3 = ey * Ax - ex * Ay  # e x (p - a)
+                            o4 = o3 - De  # e x (q - a)
+                            if o3 * o4 < 0 and abs(o1) > tol_s and abs(o2) > tol_s and abs(o3) > te and abs(o4) > te:
+                                if not ends:
+                                    self.stats["segment_pairs"] += tested
+                                    return True
+                                seg = cs = False
+                                blocked = True
+                        if abs(o1) <= tol_s and not blocked:
                             t = dx * Ax + dy * Ay
                             if tol_s < t < L2 - tol_s:
                                 if on is None:
                                     on = []
                                 on.append(i)
                         if cpp and (ay > py) != (by > py):
+                            if o3 is None:
+                                o3 = ey * Ax - ex * Ay
                             if abs(o3) <= te:
                                 return -1
                             if (o3 > 0) == up:
                                 cp = not cp
                         if cqq and (ay > qy) != (by > qy):
+                            if o3 is None:
+                                o3 = ey * Ax - ex * Ay
+                            o4 = o3 - De
                             if abs(o4) <= te:
                                 return -1
                             if (o4 > 0) == up:
