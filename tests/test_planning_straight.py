@@ -1,8 +1,10 @@
-"""The straight-line fast path of PlanningMap.solve (VisibilityMap.straight_free).
+"""The straight-line fast path of PlanningMap.solve (VisibilityMap.straight_check).
 
 It must answer exactly what the full path (shapely endpoint checks, then the search) answers:
 the same route, the same typed errors, the same escapes. Degenerate cases (a segment grazing a
-corner, running along an enlarged edge, ending on one) and random worlds (hypothesis).
+corner, running along an enlarged edge, ending on one, passing through a vertex) and random
+worlds (hypothesis), with both forms of the test: plain Python over per-map tuples (_scan, maps
+of at most _SCALAR_MAX_EDGES edges) and numpy (larger maps), which must agree.
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ from shapely.geometry import LineString, box
 import sbplan
 from sbplan.errors import (GoalInObstacleError, NoRouteError, OutOfBoundsError, PlanningError,
                            StartInObstacleError)
-from sbplan.planning import PlanningMap
+from sbplan.planning import PlanningMap, vismap
 
 from test_planning_exact import random_world
 
@@ -153,21 +155,74 @@ def test_empty_map_and_no_route_are_unchanged():
         pm.solve((10, 50), (90, 50))
 
 
+def numpy_form(pm: PlanningMap) -> PlanningMap:
+    """A copy of the map whose segment tests take the numpy form (no _scan tables)."""
+    other = pm.copy()
+    other.vmap._scan_polys = None
+    return other
+
+
+def test_maps_above_the_limit_use_numpy_and_answer_the_same(monkeypatch):
+    polys = random_world(3, 8)
+    pm = PlanningMap(polys, robot_radius=0.5, bounds=B)
+    assert pm.vmap._scan_polys is not None
+    monkeypatch.setattr(vismap, "_SCALAR_MAX_EDGES", 0)
+    big = PlanningMap(polys, robot_radius=0.5, bounds=B)
+    assert big.vmap._scan_polys is None
+    rng = np.random.default_rng(3)
+    for s, g in rng.uniform(0, 100, (40, 2, 2)):
+        assert_same(answer(big, s, g), answer(pm, s, g))
+        assert big.vmap.straight_check(s, g) == pm.vmap.straight_check(s, g)
+
+
+def test_scan_tables_follow_added_obstacles_and_copies():
+    pm, _ = square_map()
+    s, g = (10, 20), (90, 20)
+    assert pm.vmap.straight_check(s, g) == 1
+    other = pm.copy()
+    other.add_obstacles([box(70, 10, 72, 30)])
+    assert other.vmap.straight_check(s, g) == 0 and pm.vmap.straight_check(s, g) == 1
+    assert_same(other.solve(s, g), full(other, s, g))
+
+
+def test_a_segment_through_a_vertex_takes_the_cone_test():
+    # A diamond: the segment along its diagonal through two vertices is blocked, one touching a
+    # vertex from outside is free; both through _scan's vertex branch (the numpy cone test).
+    diamond = shapely.Polygon([(50, 40), (60, 50), (50, 60), (40, 50)])
+    pm = PlanningMap([diamond], robot_radius=0.0, bounds=B)
+    (big,) = pm.enlarged
+    ys = sorted(y for _, y in big.exterior.coords[:-1])
+    top = max(big.exterior.coords[:-1], key=lambda c: c[1])
+    for s, g in [((50.0, 10.0), (50.0, 90.0)),  # through the bottom and top vertices: enters
+                 ((top[0] - 20, top[1]), (top[0] + 20, top[1]))]:  # grazes the top vertex
+        assert_same(answer(pm, s, g), full(pm, s, g))
+        assert pm.vmap.straight_check(s, g) == numpy_form(pm).vmap.straight_check(s, g)
+    assert ys[0] < 40 and pm.vmap.straight_check((50.0, 10.0), (50.0, 90.0)) == 0
+
+
 @st.composite
 def world_and_points(draw):
     seed = draw(st.integers(0, 2**31 - 1))
     n = draw(st.integers(1, 8))
     radius = draw(st.sampled_from([0.0, 0.5, 2.0]))
-    return seed, n, radius
+    chunk = draw(st.sampled_from([1, 3, vismap._SCAN_EDGES]))
+    discs = draw(st.integers(0, 2))
+    return seed, n, radius, chunk, discs
 
 
 @settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(case=world_and_points())
 def test_fast_path_agrees_with_the_full_path_and_shapely(case):
-    seed, n, radius = case
+    seed, n, radius, chunk, discs = case
     polys = random_world(seed, n)
-    pm = PlanningMap(polys, robot_radius=radius, bounds=B)
     rng = np.random.default_rng(seed)
+    # Many-edged obstacles too (several chunks per polygon in _scan's tables).
+    polys += [shapely.Point(rng.uniform(10, 90, 2)).buffer(rng.uniform(2, 10), quad_segs=int(rng.integers(2, 12)))
+              for _ in range(discs)]
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(vismap, "_SCAN_EDGES", chunk)
+        pm = PlanningMap(polys, robot_radius=radius, bounds=B)
+    pn = numpy_form(pm)
     corners = np.concatenate([np.zeros((0, 2))] + [np.asarray(p.exterior.coords)[:-1] for p in pm.enlarged])
     pts = list(rng.uniform(-1, 101, (16, 2)))
     # Degenerate ends: enlarged corners, and points on enlarged edges.
@@ -175,13 +230,30 @@ def test_fast_path_agrees_with_the_full_path_and_shapely(case):
         i = rng.integers(len(corners))
         pts.append(corners[i])
         pts.append(corners[i] + rng.uniform() * (corners[(i + 1) % len(corners)] - corners[i]))
+    # Segments through a corner (the vertex branch and its cone test), from both sides.
+    for _ in range(4 if len(corners) else 0):
+        c = corners[rng.integers(len(corners))]
+        d = rng.normal(size=2)
+        pts.append(c - rng.uniform(1, 30) * d)
+        pts.append(c + rng.uniform(1, 30) * d)
     for k in range(0, len(pts) - 1, 2):
         s, g = pts[k], pts[k + 1]
         fast = answer(pm, s, g)
         assert_same(fast, full(pm, s, g))
+        # The two forms of the test give the same decisions.
+        assert pm.vmap.segment_free(s, g) == pn.vmap.segment_free(s, g)
         ok_bounds = pm.in_bounds(s) and pm.in_bounds(g)
         if not ok_bounds:
             continue
+        code = pm.vmap.straight_check(s, g)
+        assert code == pn.vmap.straight_check(s, g)
+        assert_same(answer(pn, s, g), fast)
+        if code >= 0:
+            # Both ends certainly free: the endpoint checks the fast path skips pass them unchanged.
+            for p, which in ((s, "start"), (g, "goal")):
+                q, esc = pm.check_endpoint(np.asarray(p, float), which)
+                assert not esc and q is not None
+            assert (code == 1) == pm.vmap.segment_free(s, g)
         # Away from every boundary (1e-6 of the map) shapely decides without tolerances: the
         # fast path must then be taken exactly when the segment is free.
         seg = LineString([s, g])

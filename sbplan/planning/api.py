@@ -27,14 +27,28 @@ from .vismap import VisibilityMap
 TOL = 1e-6
 
 
+_F64 = np.dtype(float)
+
+
 def _point(p: Any, name: str) -> np.ndarray:
-    try:
-        a = np.asarray(p, dtype=float).reshape(-1)
-    except (TypeError, ValueError):
-        raise InputError(f"{name}: expected a point (x, y), got {p!r}") from None
-    if a.shape != (2,) or not np.isfinite(a).all():
+    return _point_xy(p, name)[0]
+
+
+def _point_xy(p: Any, name: str) -> tuple[np.ndarray, float, float]:
+    """The point as a float array of shape (2,) and as two floats."""
+    if type(p) is np.ndarray and p.dtype is _F64 and p.shape == (2,):
+        a = p  # the common case, without asarray's and isfinite's call overhead
+    else:
+        try:
+            a = np.asarray(p, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            raise InputError(f"{name}: expected a point (x, y), got {p!r}") from None
+        if a.shape != (2,):
+            raise InputError(f"{name}: expected a finite point (x, y), got {p!r}")
+    x, y = a.tolist()
+    if not (math.isfinite(x) and math.isfinite(y)):
         raise InputError(f"{name}: expected a finite point (x, y), got {p!r}")
-    return a
+    return a, x, y
 
 
 class PlanningMap:
@@ -85,7 +99,8 @@ class PlanningMap:
     # -- queries ----------------------------------------------------------------------------------
     def in_bounds(self, p: np.ndarray) -> bool:
         x0, y0, x1, y1 = self.bounds
-        return x0 <= p[0] <= x1 and y0 <= p[1] <= y1
+        x, y = p.tolist() if type(p) is np.ndarray else p
+        return x0 <= x <= x1 and y0 <= y <= y1
 
     def check_endpoint(self, p: np.ndarray, which: str) -> tuple[np.ndarray, bool]:
         """Validate a start or goal; return the free point to plan from and whether it had to
@@ -123,28 +138,46 @@ class PlanningMap:
     def solve(self, start: Any, goal: Any, *, time_limit: float = 1.0, planner: str = "aux-corner") -> "Route":
         """The exact shortest route (the auxiliary-corner search). Raises a PlanningError."""
         t0 = time.perf_counter()
-        s0, g0 = _point(start, "start"), _point(goal, "goal")
-        # Straight-line fast path: both ends inside the bounds, certainly not inside an enlarged
-        # obstacle (hence not in a real one) and the segment enters none. The checks and the
-        # search of _solve_full would return exactly this segment; this answers it from the
-        # map's edge arrays alone (no shapely point queries, no search state). Undecided cases
-        # (an end within eps of an edge) take the full path.
-        if self.in_bounds(s0) and self.in_bounds(g0) and self.vmap.straight_free(s0, g0):
-            return Route(np.stack((s0, g0)), planner=planner, time=time.perf_counter() - t0, map=self, goal=g0)
+        s0, sx, sy = _point_xy(start, "start")
+        g0, gx, gy = _point_xy(goal, "goal")
+        # Both ends inside the bounds and certainly outside (or on) every enlarged obstacle, hence
+        # outside every real one: the endpoint checks of _solve_full (shapely point queries)
+        # would pass them unchanged. straight_check decides that from the map's edges alone,
+        # with the segment test: a free segment is the route (what the search would return, no
+        # search state); a blocked one goes straight to the search. Undecided cases (an end
+        # inside an obstacle or within eps of an edge) take the full path.
+        x0, y0, x1, y1 = self.bounds
+        if x0 <= sx <= x1 and y0 <= sy <= y1 and x0 <= gx <= x1 and y0 <= gy <= y1:
+            code = self.vmap._straight_check(sx, sy, gx, gy)
+            if code == 1:
+                return Route._segment(sx, sy, gx, gy, planner, t0, self, g0)
+            if code == 0:
+                return self._search(s0, g0, False, False, t0=t0, time_limit=time_limit, planner=planner,
+                                    straight_blocked=True)
         return self._solve_full(s0, g0, t0=t0, time_limit=time_limit, planner=planner)
 
     def _solve_full(self, s0: np.ndarray, g0: np.ndarray, *, t0: float, time_limit: float, planner: str) -> "Route":
-        """solve without the fast path: endpoint checks (errors, escapes), then the search."""
+        """solve without the fast paths: endpoint checks (errors, escapes), then the search."""
         s, s_esc = self.check_endpoint(s0, "start")
         g, g_esc = self.check_endpoint(g0, "goal")
+        return self._search(s0, g0, s if s_esc else False, g if g_esc else False, t0=t0, time_limit=time_limit,
+                            planner=planner)
+
+    def _search(self, s0: np.ndarray, g0: np.ndarray, s_esc: Any, g_esc: Any, *, t0: float, time_limit: float,
+                planner: str, straight_blocked: bool = False) -> "Route":
+        """The search from s0 (or its escape point s_esc) to g0 (or g_esc); the route starts and
+        ends at s0 and g0."""
+        s = s0 if s_esc is False else s_esc
+        g = g0 if g_esc is False else g_esc
         deadline = t0 + float(time_limit)
-        wp, _ = self.vmap.shortest_path(s, g, should_stop=lambda: time.perf_counter() > deadline)
-        if s_esc:
+        wp, _ = self.vmap.shortest_path(s, g, should_stop=lambda: time.perf_counter() > deadline,
+                                        straight_blocked=straight_blocked)
+        if s_esc is not False:
             wp = np.concatenate([s0[None], wp])
-        if g_esc:
+        if g_esc is not False:
             wp = np.concatenate([wp, g0[None]])
-        return Route(wp, status="approximate" if (s_esc or g_esc) else "exact", planner=planner,
-                     time=time.perf_counter() - t0, map=self, goal=g0)
+        return Route(wp, status="approximate" if (s_esc is not False or g_esc is not False) else "exact",
+                     planner=planner, time=time.perf_counter() - t0, map=self, goal=g0)
 
     def copy(self) -> "PlanningMap":
         """An independent copy (the visibility cache is copied, not rebuilt)."""
@@ -216,11 +249,30 @@ class Route:
     length: float = field(init=False)
 
     def __post_init__(self) -> None:
-        w = self.waypoints = np.asarray(self.waypoints, float).reshape(-1, 2)
-        d = w[1:] - w[:-1]  # (not np.diff: its call overhead shows on straight-line queries)
-        self.length = float(np.hypot(d[:, 0], d[:, 1]).sum())
-        if self.goal is None and len(w):
+        w = self.waypoints
+        if not (type(w) is np.ndarray and w.dtype is _F64 and w.ndim == 2 and w.shape[1] == 2):
+            w = self.waypoints = np.asarray(w, float).reshape(-1, 2)
+        # Plain Python over the waypoints: numpy's call overhead showed on straight-line queries.
+        pts = w.tolist()
+        length = 0.0
+        for (x0, y0), (x1, y1) in zip(pts, pts[1:]):
+            length += math.hypot(x1 - x0, y1 - y0)
+        self.length = length
+        if self.goal is None and pts:
             self.goal = w[-1].copy()
+
+    @classmethod
+    def _segment(cls, sx: float, sy: float, gx: float, gy: float, planner: str, t0: float, pmap: PlanningMap,
+                 goal: np.ndarray) -> "Route":
+        """The exact route start -> goal along one segment: what ``Route(np.stack((s, g)),
+        planner=planner, time=..., map=pmap, goal=goal)`` builds, the same length (the sum in
+        __post_init__ of one hypot), without the dataclass machinery (straight-line queries)."""
+        r = cls.__new__(cls)
+        r.waypoints = np.array(((sx, sy), (gx, gy)))
+        r.status, r.planner, r.replanned, r.map, r.goal = "exact", planner, True, pmap, goal
+        r.length = math.hypot(gx - sx, gy - sy)
+        r.time = time.perf_counter() - t0
+        return r
 
     def to_dict(self) -> dict:
         return {"status": self.status, "planner": self.planner, "length": self.length,

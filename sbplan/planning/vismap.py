@@ -24,6 +24,15 @@ _UNKNOWN, _FREE, _BLOCKED = 0, 1, 2
 _DENSE_LIMIT = 10_000
 #: Row chunk of the general (non-fan) segment test: bounds its K x E temporaries to ~1M pairs.
 _CHUNK_PAIRS = 1_000_000
+#: Maps with at most this many edges answer one-segment tests (straight_check, segment_free: the
+#: straight-line fast path, the search's first test, OMPL's motion checks) in plain Python over
+#: per-map tuples with bounding boxes (_scan); larger maps use the numpy form (_segment). _scan
+#: was faster on every bench world (straight_check 3.4-14 us against 26-39 us, rect-200 included),
+#: but its tables cost ~20 us + 0.3 us per edge of build: they pay back within ~5 queries up to
+#: the 524 edges of map:crowded, after ~35 on rect-200's 800.
+_SCALAR_MAX_EDGES = 600
+#: Consecutive edges of one polygon per bounding box in _scan's tables.
+_SCAN_EDGES = 8
 
 
 def _cross(ax, ay, bx, by):
@@ -136,7 +145,7 @@ class VisibilityMap:
         self._ex, self._ey = self._bx - self._ax, self._by - self._ay
         e2 = self._ex * self._ex + self._ey * self._ey
         self._tol_e = self.eps * np.sqrt(e2)  # |cross(e, x - a)| below this: x is on the edge's line
-        self._up = self._by > self._ay  # upward edges (the ray-crossing parity of straight_free)
+        self._up = self._by > self._ay  # upward edges (the ray-crossing parity of straight_check)
         # Complex forms for the one-segment test (_segment): a, e and -conj(e).
         self._ac = self._ax + 1j * self._ay
         self._ecx = self._ex + 1j * self._ey
@@ -158,6 +167,30 @@ class VisibilityMap:
         # The corner's two edges, as vectors from the corner (tangency and tautness tests).
         self._rpx, self._rpy = self._cprev[:, 0] - self._cx, self._cprev[:, 1] - self._cy
         self._rnx, self._rny = self._cnext[:, 0] - self._cx, self._cnext[:, 1] - self._cy
+        self._scan_polys = self._scan_tables() if 0 < len(ea) <= _SCALAR_MAX_EDGES else None
+
+    def _scan_tables(self) -> tuple:
+        """_scan's per-map tables: per polygon (with edges) its bounding box and its edges in
+        chunks of _SCAN_EDGES consecutive edges, each chunk with the bounding box of its vertices
+        and per edge the floats (ax, ay, by, ex, ey, tol_e, upward, edge index) -- the very values
+        of the numpy arrays, so both forms compute the same products."""
+        cols = list(zip(self._ax.tolist(), self._ay.tolist(), self._by.tolist(), self._ex.tolist(),
+                        self._ey.tolist(), self._tol_e.tolist(), self._up.tolist(), range(len(self._ax))))
+        # Chunk starts: every _SCAN_EDGES-th edge of each polygon (vectorized, like the boxes).
+        n = self._pcount[self._pcount > 0]
+        nch = (n + _SCAN_EDGES - 1) // _SCAN_EDGES
+        first = np.repeat(np.cumsum(nch) - nch, nch)
+        cs = np.repeat(self._pstart, nch) + _SCAN_EDGES * (np.arange(len(first)) - first)
+        ce = np.minimum(cs + _SCAN_EDGES, np.repeat(self._pstart + n, nch))
+        lo = np.minimum.reduceat(np.minimum(self._ea, self._eb), cs)  # (chunks, 2): x, y
+        hi = np.maximum.reduceat(np.maximum(self._ea, self._eb), cs)
+        pfirst = np.cumsum(nch) - nch
+        plo, phi = np.minimum.reduceat(lo, pfirst), np.maximum.reduceat(hi, pfirst)
+        chunks = [(x0, y0, x1, y1, tuple(cols[c0:c1]))
+                  for (x0, y0), (x1, y1), c0, c1 in zip(lo.tolist(), hi.tolist(), cs.tolist(), ce.tolist())]
+        polys = [(x0, y0, x1, y1, tuple(chunks[c0:c0 + k]))
+                 for (x0, y0), (x1, y1), c0, k in zip(plo.tolist(), phi.tolist(), pfirst.tolist(), nch.tolist())]
+        return tuple(polys)
 
     # -- segment tests ----------------------------------------------------------------------------
     #
@@ -173,31 +206,174 @@ class VisibilityMap:
 
     def segment_free(self, p: Sequence[float], q: Sequence[float]) -> bool:
         """True when the segment p-q enters no enlarged obstacle (touching is allowed)."""
+        if self._scan_polys is not None:
+            return not self._scan(float(p[0]), float(p[1]), float(q[0]), float(q[1]), False)
         return not self._segment(float(p[0]), float(p[1]), float(q[0]), float(q[1]))[0]
 
     def straight_free(self, p: Sequence[float], q: Sequence[float]) -> bool:
         """True when p and q are certainly not inside any enlarged obstacle (outside, or on a
-        boundary) and the segment p-q enters none: then p-q is the shortest route, and the full
-        checks (shapely point queries) and the search would say exactly that. False also when an
-        end is too close to an edge to decide here; the caller then takes the full path."""
+        boundary) and the segment p-q enters none: then p-q is the shortest route (see
+        straight_check)."""
+        return self.straight_check(p, q) == 1
+
+    def straight_check(self, p: Sequence[float], q: Sequence[float]) -> int:
+        """The ends and the segment p-q at once: 1 when both ends are certainly not inside any
+        enlarged obstacle (outside, or on a boundary) and the segment enters none -- then p-q is
+        the shortest route, and the full checks (shapely point queries) and the search would say
+        exactly that; 0 when both ends are certainly outside but the segment enters an obstacle
+        (the endpoint checks would pass both ends unchanged: only the search is left); -1 when an
+        end is inside an obstacle or too close to an edge to decide here (the full checks decide).
+
+        The ends: a ray-crossing parity per polygon that reuses the segment test's cross products
+        e x (end - a). The straddle test (half-open in y) is exact; the side test is trusted only
+        beyond eps from the edge's line (else -1), so the parity is exact whenever it is used.
+        A ray to +x crosses an upward edge with the end on its left (cross > 0), a downward one
+        with the end on its right."""
+        return self._straight_check(float(p[0]), float(p[1]), float(q[0]), float(q[1]))
+
+    def _straight_check(self, px: float, py: float, qx: float, qy: float) -> int:
+        if self._scan_polys is not None:
+            return self._scan(px, py, qx, qy, True)
         if len(self._ax) == 0:
-            return True
-        py, qy = float(p[1]), float(q[1])
-        blocked, o3, o4 = self._segment(float(p[0]), py, float(q[0]), qy)
-        if blocked:
-            return False
-        # Ray-crossing parity of both ends at once (row 0: p, row 1: q); o3, o4 are the cross
-        # products e x (end - a) of every edge. The straddle test (half-open in y) is exact; the
-        # side test is trusted only beyond eps from the edge's line, so the parity is exact
-        # whenever it is used. A ray to +x crosses an upward edge with the end on its left
-        # (o > 0), a downward one with the end on its right.
+            return 1
+        blocked, o3, o4 = self._segment(px, py, qx, qy)
+        # Row 0: p, row 1: q.
         o = np.stack((o3, o4))
         y = np.array(((py,), (qy,)))
         straddle = (self._ay > y) != (self._by > y)
         if (straddle & (np.abs(o) <= self._tol_e)).any():
-            return False
+            return -1
         cross = straddle & ((o > 0) == self._up)
-        return not (np.add.reduceat(cross.view(np.uint8), self._pstart, axis=1) & 1).any()
+        if (np.add.reduceat(cross.view(np.uint8), self._pstart, axis=1) & 1).any():
+            return -1
+        return 0 if blocked else 1
+
+    def _scan(self, px: float, py: float, qx: float, qy: float, ends: bool):
+        """The one-segment test (and, with ``ends``, the parity of straight_check) in plain
+        Python: on small maps a few dozen float operations cost less than the fixed overhead of
+        ~30 numpy calls. The same predicates, tolerances and products as _segment and the numpy
+        straight_check; bounding boxes only skip edges that cannot decide anything:
+
+        - the segment part skips polygons and chunks whose vertex box misses the segment's box
+          grown by 4 eps (a proper crossing, signs beyond the tolerances, far above rounding,
+          needs the segments to meet; a vertex on the segment lies within eps of it), and
+          polygons whose box lies beyond 2 eps|D| on one side of the segment's line;
+        - the parity of an end skips polygons and chunks whose vertices' y-range [ymin, ymax)
+          does not hold the end's y: none of their edges straddles it (the half-open straddle
+          test is exact).
+
+        Without ``ends``: whether the segment is blocked. With ``ends``: straight_check's -1 / 0 / 1.
+        """
+        dx, dy = qx - px, qy - py
+        L2 = dx * dx + dy * dy
+        eps = self.eps
+        tol_s = eps * math.sqrt(L2)
+        pad = 4 * eps
+        if px < qx:
+            sx0, sx1 = px - pad, qx + pad
+        else:
+            sx0, sx1 = qx - pad, px + pad
+        if py < qy:
+            sy0, sy1 = py - pad, qy + pad
+        else:
+            sy0, sy1 = qy - pad, py + pad
+        seg, blocked, on, tested = True, False, None, 0
+        hp = hq = cpp = cqq = False
+        # The segment's line, f(x, y) = D x ((x, y) - p) (o1 of a vertex): a polygon's box whose
+        # corners all lie beyond 2 tol_s on one side (rounding is far below tol_s) holds no edge
+        # that crosses the segment and no vertex on it.
+        m = 2 * tol_s
+        dxp, dyp = dx > 0, dy > 0
+        for x0, y0, x1, y1, chunks in self._scan_polys:
+            hs = seg and x0 <= sx1 and x1 >= sx0 and y0 <= sy1 and y1 >= sy0
+            if hs:
+                if dxp:
+                    fhi, flo = dx * (y1 - py), dx * (y0 - py)
+                else:
+                    fhi, flo = dx * (y0 - py), dx * (y1 - py)
+                if dyp:
+                    fhi, flo = fhi - dy * (x0 - px), flo - dy * (x1 - px)
+                else:
+                    fhi, flo = fhi - dy * (x1 - px), flo - dy * (x0 - px)
+                hs = flo <= m and fhi >= -m
+            if ends:
+                hp = y0 <= py < y1
+                hq = y0 <= qy < y1
+                if not (hs or hp or hq):
+                    continue
+            elif not hs:
+                continue
+            cp = cq = False
+            for x0, y0, x1, y1, edges in chunks:
+                cs = hs and seg and x0 <= sx1 and x1 >= sx0 and y0 <= sy1 and y1 >= sy0
+                if ends:
+                    cpp = hp and y0 <= py < y1
+                    cqq = hq and y0 <= qy < y1
+                if cs:
+                    tested += len(edges)
+                    for ax, ay, by, ex, ey, te, up, i in edges:
+                        Ax, Ay = ax - px, ay - py
+                        o1 = dx * Ay - dy * Ax  # D x A
+                        De = dx * ey - dy * ex  # D x e
+                        o2 = o1 + De  # D x (A + e)
+                        o3 = None
+                        if o1 * o2 < 0:
+                            o3 = ey * Ax - ex * Ay  # e x (p - a)
+                            o4 = o3 - De  # e x (q - a)
+                            if o3 * o4 < 0 and abs(o1) > tol_s and abs(o2) > tol_s and abs(o3) > te and abs(o4) > te:
+                                if not ends:
+                                    self.stats["segment_pairs"] += tested
+                                    return True
+                                seg = cs = False
+                                blocked = True
+                        if abs(o1) <= tol_s and not blocked:
+                            t = dx * Ax + dy * Ay
+                            if tol_s < t < L2 - tol_s:
+                                if on is None:
+                                    on = []
+                                on.append(i)
+                        if cpp and (ay > py) != (by > py):
+                            if o3 is None:
+                                o3 = ey * Ax - ex * Ay
+                            if abs(o3) <= te:
+                                return -1
+                            if (o3 > 0) == up:
+                                cp = not cp
+                        if cqq and (ay > qy) != (by > qy):
+                            if o3 is None:
+                                o3 = ey * Ax - ex * Ay
+                            o4 = o3 - De
+                            if abs(o4) <= te:
+                                return -1
+                            if (o4 > 0) == up:
+                                cq = not cq
+                elif cpp or cqq:
+                    # The parity alone: the cross products of the straddling edges only.
+                    for ax, ay, by, ex, ey, te, up, i in edges:
+                        if cpp and (ay > py) != (by > py):
+                            o3 = ey * (ax - px) - ex * (ay - py)
+                            if abs(o3) <= te:
+                                return -1
+                            if (o3 > 0) == up:
+                                cp = not cp
+                        if cqq and (ay > qy) != (by > qy):
+                            o4 = (ey * (ax - px) - ex * (ay - py)) - (dx * ey - dy * ex)
+                            if abs(o4) <= te:
+                                return -1
+                            if (o4 > 0) == up:
+                                cq = not cq
+            if cp or cq:
+                return -1
+        self.stats["segment_pairs"] += tested
+        if on is not None and not blocked:
+            # A vertex strictly inside the segment (rare): the numpy cone test decides.
+            ee = np.array(on)
+            k = len(ee)
+            blocked = bool(_enters_cone(self, ee, np.full(k, dx), np.full(k, dy), self._ax[ee] - px,
+                                        self._ay[ee] - py).any())
+        if not ends:
+            return blocked
+        return 0 if blocked else 1
 
     def _segment(self, px: float, py: float, qx: float, qy: float):
         """One segment p-q against every edge: (blocked, o3, o4), o3 and o4 per edge.
@@ -350,17 +526,19 @@ class VisibilityMap:
         return out
 
     # -- search -----------------------------------------------------------------------------------
-    def shortest_path(self, start: Sequence[float], goal: Sequence[float], *, should_stop=None
-                      ) -> tuple[np.ndarray, float]:
+    def shortest_path(self, start: Sequence[float], goal: Sequence[float], *, should_stop=None,
+                      straight_blocked: bool = False) -> tuple[np.ndarray, float]:
         """Euclidean-shortest route from start to goal, shape (M, 2) ``(x, y)``, and its length.
 
         Start and goal must be free points inside the bounds. Raises NoRouteError when the search
         is exhausted (a proof that no route exists). ``should_stop()`` is polled per expansion
         (OMPL's termination condition); stopping early raises NoRouteError with reason timeout.
+        ``straight_blocked``: the caller already found the segment start-goal blocked (the same
+        test, straight_check), so it is not tested again.
         """
         s = np.asarray(start, float)
         g = np.asarray(goal, float)
-        if self.segment_free(s, g):
+        if not straight_blocked and self.segment_free(s, g):
             return np.stack([s, g]), float(np.hypot(*(g - s)))
         C = len(self._cp)
         S, G = C, C + 1
