@@ -168,6 +168,9 @@ def measure_world(name, obs, bounds, radius, queries, *, planners, time_limit, n
 
     build, cold, warm, lengths = [], [], [], []
     for s, g in queries:
+        # Release the previous query's map and route before the clock starts: rebinding inside the
+        # timed region made it pay for freeing them (5-9 us, 40 % of a straight-line query).
+        pm = r = None
         t0 = time.perf_counter()
         pm = PlanningMap(obs, robot_radius=radius, bounds=bounds)
         t1 = time.perf_counter()
@@ -211,6 +214,7 @@ def measure_world(name, obs, bounds, radius, queries, *, planners, time_limit, n
         ratios, times, fails = [], [], 0
         for qi, (s, g) in enumerate(queries[:n_ompl]):
             fresh = PlanningMap(obs, robot_radius=radius, bounds=bounds)
+            r = None  # as above: the previous route is freed outside the timed region
             t0 = time.perf_counter()
             try:
                 r = solve_ompl(fresh, s, g, name_p, time_limit=time_limit, seed=seed * 1000 + qi + 1)
