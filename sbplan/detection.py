@@ -182,6 +182,9 @@ class Detector:
                 # separators read "far from any outline": an outline touching one is not a symbol
                 self._band_distance_map = bands.stack(self.distance_map, fill=np.float32(1e3))
                 self._band_ref_points = bands.to_stacked(self.ref_points.reshape(-1, 2)).reshape(self.ref_points.shape)
+        # the length filter's bounds, checked once (length_filter raises on bad ones)
+        length_filter_steps([], cal.symbol_points_range)
+        self._points_range = (float(cal.symbol_points_range[0]), float(cal.symbol_points_range[1]))
         self.stage_names = {"binarizer": self.binarizer.name, "extractor": self.extractor.name,
                             "approximator": self.approximator.name, "matcher": self.matcher.name,
                             "mapper": self.mapper.name}
@@ -217,7 +220,9 @@ class Detector:
         lap("binarize")
         outer = self.extractor.extract_outer(binary)
         lap("extract")
-        kept = [outer[i] for i in np.flatnonzero(length_filter_steps(outer, cal.symbol_points_range))]
+        # length_filter_steps's test, without its array round trip: one comparison per contour
+        lo, hi = self._points_range
+        kept = [c for c in outer if lo <= len(c.points) <= hi]
         polygons = self.approximator.approximate_many(kept)
         if not isinstance(polygons, PolygonBatch):
             # a plugin's plain list: drop what is not a polygon, pack once for the vectorized steps

@@ -61,6 +61,9 @@ class PolygonBatch(collections.abc.Sequence):
             raise ContourError(f"PolygonBatch: {len(points)} points do not split into outlines of {counts.tolist()}")
         if len(counts) and (counts.min() < 3 or not np.isfinite(points).all()):
             raise ContourError("PolygonBatch: every outline needs at least 3 finite points")
+        self._set(points, counts)
+
+    def _set(self, points: np.ndarray, counts: np.ndarray) -> None:
         self.points = points
         self.counts = counts
         self.starts = np.zeros(len(counts), np.int64)
@@ -68,6 +71,19 @@ class PolygonBatch(collections.abc.Sequence):
         # n -> (x, y) of resample_xy(self, n): the descriptors and the outline check of one frame
         # resample the same outlines, the check at half the descriptors' rate
         self._resampled: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+
+    @classmethod
+    def unchecked(cls, points: np.ndarray, counts: np.ndarray) -> "PolygonBatch":
+        """A batch made without validation, for producers whose output is valid by construction
+        (an approximator's vertices picked from pixel contours, a ``take`` of a batch): the checks
+        cost about as much as the rest of a small batch's construction, once per frame.
+
+        ``points`` must be a float64 (sum N_i, 2) array of finite values, ``counts`` int64 with
+        every N_i >= 3 and summing to ``len(points)``; nothing checks that.
+        """
+        obj = cls.__new__(cls)
+        obj._set(points, counts)
+        return obj
 
     @classmethod
     def from_list(cls, polygons: Sequence[np.ndarray]) -> "PolygonBatch":
@@ -93,7 +109,7 @@ class PolygonBatch(collections.abc.Sequence):
             return PolygonBatch(np.zeros((0, 2)), counts)
         # index of every kept point: each outline's start, then 0, 1, 2, ... within it
         offsets = np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
-        out = PolygonBatch(self.points[np.repeat(self.starts[idx], counts) + offsets], counts)
+        out = PolygonBatch.unchecked(self.points[np.repeat(self.starts[idx], counts) + offsets], counts)
         for n, (x, y) in self._resampled.items():
             out._resampled[n] = (_read_only(x[idx]), _read_only(y[idx]))
         return out
