@@ -7,6 +7,7 @@ once (stages, reference descriptors, thresholds), so a stream of frames pays onl
 
 from __future__ import annotations
 
+import collections.abc
 import os
 import time
 from dataclasses import dataclass, field
@@ -17,10 +18,11 @@ import numpy as np
 from .bands import RowBands
 from .calibration import Calibration, confuser_distances, derive_threshold, length_filter_steps, load_calibration
 from .errors import DetectionError
-from .geometry import PolygonBatch, centroids, signed_areas
+from .geometry import PolygonBatch, centroids, resample_xy, signed_areas
 from .imageio import as_gray, load_image
 from .obstacles import Obstacle, find_obstacles
-from .outline_check import INNER_MARGIN_PX, hidden_piece, outline_deviation, reference_samples, signed_distance_map
+from .outline_check import (INNER_MARGIN_PX, SAMPLES, hidden_piece, reference_samples, samples_deviation,
+                            signed_distance_map)
 
 FORMAT = "sbplan.detection/1"
 
@@ -238,8 +240,11 @@ class Detector:
             lap("describe")
             hit = np.flatnonzero(d < self.threshold)
             if len(hit):
-                hit_polygons = polygons if len(hit) == len(polygons) else polygons.take(hit)
-                centres, areas = centroids(hit_polygons, on_zero_area="nan", return_areas=True)
+                # Centres and areas of every polygon, then the hits' rows: cheaper than gathering
+                # the hits' vertices into a batch of their own first (most polygons are hits).
+                centres, areas = centroids(polygons, on_zero_area="nan", return_areas=True)
+                if len(hit) < len(polygons):
+                    centres, areas = centres[hit], areas[hit]
                 if self.bands is not None:
                     centres = self.bands.to_full(centres)
                 cells = cal.grid.assign(centres)
@@ -254,12 +259,15 @@ class Detector:
                 # more than light and focus make it is partly hidden.
                 if ok.any():
                     idx = np.flatnonzero(ok)
-                    checked = hit_polygons if len(idx) == len(hit) else hit_polygons.take(idx)
-                    deviation, shift = outline_deviation(checked, self._band_distance_map, return_shift=True)
+                    picked = hit[idx]
+                    # the checked outlines' samples are rows of the descriptors' (resample_xy
+                    # remembers them with the batch), so no batch of the checked outlines is made
+                    x, y = resample_xy(polygons, SAMPLES)
+                    deviation, shift = samples_deviation(x[picked], y[picked], self._band_distance_map)
                     # ... and one that left out a piece of its cell's reference outline is too
                     flat = cells[idx, 0] * cols + cells[idx, 1]
-                    hidden = hidden_piece(checked, shift, self._band_ref_points[flat], self.inward[flat],
-                                          self.allowance[flat], binary)
+                    hidden = hidden_piece(_Picked(polygons, picked), shift, self._band_ref_points[flat],
+                                          self.inward[flat], self.allowance[flat], binary)
                     ok[idx[(deviation > cal.outline_tolerance_px) | hidden]] = False
                 found[cells[ok, 0], cells[ok, 1]] = True
                 matched, candidates = centres[ok], centres[~ok]
@@ -283,6 +291,24 @@ class Detector:
         timings["total"] = cells.timings_ms["total"] + timings["map"] + timings["obstacles"]
         return Detection(cal, cells.occupied, cells.symbols_found, cells.matched_centres_px, occupancy,
                          obstacles, timings, self.stage_names, cells.candidates_px)
+
+
+class _Picked(collections.abc.Sequence):
+    """The outlines ``batch[i]`` for ``i`` in ``indices``, looked up only when asked for:
+    :func:`~sbplan.outline_check.hidden_piece` reads a handful of them per frame, if any."""
+
+    __slots__ = ("batch", "indices")
+
+    def __init__(self, batch: PolygonBatch, indices: np.ndarray):
+        self.batch, self.indices = batch, indices
+
+    def __len__(self) -> int:
+        return len(self.indices)
+
+    def __getitem__(self, i):
+        if isinstance(i, slice):
+            return [self.batch[int(j)] for j in self.indices[i]]
+        return self.batch[int(self.indices[i])]
 
 
 def detect(image: Any, calibration: Calibration | str | os.PathLike, **stages: Any) -> Detection:
