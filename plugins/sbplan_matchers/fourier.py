@@ -45,18 +45,39 @@ def fourier_coefficients(outlines: Sequence[np.ndarray], freqs, *, samples: int 
     if k.ndim != 1 or (2 * np.abs(k) >= samples).any():
         raise InputError(f"freqs: expected a 1-D list of frequencies with |k| < samples / 2 = {samples / 2:g}")
     x, y = resample_xy(outlines, samples)
-    # Two real FFTs give every coefficient of w = x - i y:
-    # c_k = X_k - i Y_k and c_-k = conj(X_k) - i conj(Y_k) for k >= 0.
-    fx = np.fft.rfft(x, axis=1)[:, np.abs(k)] / samples
-    fy = np.fft.rfft(y, axis=1)[:, np.abs(k)] / samples
-    plus = fx - 1j * fy
-    minus = fx.conj() - 1j * fy.conj()
+    return _coefficients(x, y, _gather_plan(tuple(k.tolist()), samples), samples)
+
+
+@functools.lru_cache(maxsize=16)
+def _gather_plan(freqs: tuple[int, ...], samples: int) -> np.ndarray:
+    """Where coefficient ``freqs[i]`` sits in ``[P, conj(Q)]`` (see :func:`_coefficients`): row 0
+    for outlines running counter-clockwise as displayed, row 1 for clockwise ones."""
+    k = np.asarray(freqs, dtype=np.int64)
+    half = samples // 2 + 1  # rfft's length
+    plus = np.where(k >= 0, k, half - k)      # c_k = P_k, c_-k = conj(Q_k)
+    minus = np.where(k >= 0, half + k, -k)    # reversed outline: c_k -> c_-k
+    return np.stack([plus, minus])
+
+
+def _coefficients(x: np.ndarray, y: np.ndarray, plan: np.ndarray, samples: int = 0) -> np.ndarray:
+    """:func:`fourier_coefficients` from the samples; without ``samples``, times the number of
+    samples (the FFTs' sums, not divided)."""
+    # Two real FFTs give every coefficient of w = x - i y: with X, Y their rfft,
+    # c_k = X_k - i Y_k = P_k and c_-k = conj(X_k) - i conj(Y_k) = conj(X_k + i Y_k) = conj(Q_k)
+    # for k >= 0. [P, conj(Q)] side by side, one gather per row picks the wanted ones.
+    fx = np.fft.rfft(x, axis=1)
+    fy = np.fft.rfft(y, axis=1)
+    if samples:
+        fx /= samples
+        fy /= samples
+    ify = 1j * fy
+    both = np.concatenate([fx - ify, np.conjugate(fx + ify)], axis=1)
     # The shoelace on the samples gives the traversal sense (positive = counter-clockwise as
     # displayed, i.e. in the w plane); reversing a clockwise outline swaps c_k and c_-k.
     area2 = np.einsum("ij,ij->i", y[:, :-1], x[:, 1:]) - np.einsum("ij,ij->i", x[:, :-1], y[:, 1:]) \
         + y[:, -1] * x[:, 0] - x[:, -1] * y[:, 0]
-    take_plus = (k >= 0)[None, :] != (area2 < 0)[:, None]
-    return np.where(take_plus, plus, minus)
+    rows = np.arange(0, both.size, both.shape[1])[:, None]
+    return both.ravel()[plan[(area2 < 0).view(np.int8)] + rows]
 
 
 def _frequencies(harmonics: int) -> np.ndarray:
@@ -86,24 +107,32 @@ def fourier_descriptors(outlines: Sequence[np.ndarray], *, samples: int = 128, h
     shape is mirrored (amplitudes alone cannot tell a shape from its mirror image).
     """
     kept, freqs = _plan(harmonics, mirror_terms)
-    c = fourier_coefficients(outlines, freqs, samples=samples)
-    m = len(c)
+    x, y = resample_xy(outlines, samples)
+    m = len(x)
     if m == 0:
         return np.zeros((0, harmonics + mirror_terms))
+    # The descriptor is made of ratios of coefficients: dividing them all by a power-of-two
+    # number of samples is exact and would change no bit of it, so it is skipped.
+    c = _coefficients(x, y, _gather_plan(tuple(freqs.tolist()), samples),
+                      samples if samples & (samples - 1) else 0)
     h = len(kept)
-    c1 = c[:, 0]
-    a1 = np.abs(c1)
-    if not (a1 > 1e-12 * np.abs(c).max(axis=1)).all():
-        bad = int(np.flatnonzero(~(a1 > 1e-12 * np.abs(c).max(axis=1)))[0])
-        raise ContourError(f"outlines[{bad}]: degenerate outline (no first harmonic), "
-                           "it has no Fourier descriptor")
-    amps = np.abs(c[:, 1:h + 1]) / a1[:, None]
+    mag = np.abs(c)
+    a1 = mag[:, 0]
+    degenerate = ~(a1 > 1e-12 * mag.max(axis=1))
+    if degenerate.any():
+        raise ContourError(f"outlines[{int(np.flatnonzero(degenerate)[0])}]: degenerate outline (no first "
+                           "harmonic), it has no Fourier descriptor")
+    out = np.empty((m, h + mirror_terms))
+    np.divide(mag[:, 1:h + 1], a1[:, None], out=out[:, :h])
     if mirror_terms == 0:
-        return amps
-    q = c[:, h + 1:h + 1 + mirror_terms] * c[:, h + 1 + mirror_terms:] / (c1 * c1)[:, None]
-    mag = np.abs(q)
-    chir = np.divide(q.imag, np.sqrt(mag), out=np.zeros_like(mag), where=mag > 0)
-    return np.concatenate([amps, chir], axis=1)
+        return out
+    c1 = c[:, :1]
+    q = c[:, h + 1:h + 1 + mirror_terms] * c[:, h + 1 + mirror_terms:] / (c1 * c1)
+    qmag = np.abs(q)
+    chir = out[:, h:]
+    chir[...] = 0.0
+    np.divide(q.imag, np.sqrt(qmag), out=chir, where=qmag > 0)
+    return out
 
 
 @dataclass(kw_only=True, frozen=True)
