@@ -17,6 +17,7 @@ coordinates, and of ``cv2.contourArea(..., oriented=True)``.
 from __future__ import annotations
 
 import collections.abc
+import functools
 from typing import Sequence
 
 import numpy as np
@@ -371,16 +372,23 @@ def centroids(polygons: Sequence[np.ndarray], *, on_zero_area: str = "raise", re
     p = pts - np.repeat(origin, counts, axis=0)
     f, fx, fy = _edge_integrals(p, p[_next_index(starts, counts, len(pts))])
     area = np.add.reduceat(f, starts)
-    scale = np.maximum(1.0, np.maximum.reduceat(np.abs(p).max(axis=1), starts)) ** 2
-    bad = ~(np.abs(area) > 1e-12 * scale)
-    if bad.any() and on_zero_area == "raise":
-        raise ContourError(f"polygons[{int(np.flatnonzero(bad)[0])}]: the polygon encloses no area, "
-                           "so it has no centre of area")
-    with np.errstate(divide="ignore", invalid="ignore"):
-        out = np.stack([np.add.reduceat(fx, starts) / area,
-                        np.add.reduceat(fy, starts) / (2.0 * area)], axis=1) + origin
-    out[bad] = np.nan
-    return (out, np.abs(area)) if return_areas else out
+    size = np.abs(area)
+    # No area is zero unless some is below the threshold of the largest outline: the per-outline
+    # thresholds are only worked out then.
+    bad = ~(size > 1e-12 * max(1.0, float(np.abs(p).max())) ** 2)
+    if bad.any():
+        scale = np.maximum(1.0, np.maximum.reduceat(np.abs(p).max(axis=1), starts)) ** 2
+        bad = ~(size > 1e-12 * scale)
+        if bad.any() and on_zero_area == "raise":
+            raise ContourError(f"polygons[{int(np.flatnonzero(bad)[0])}]: the polygon encloses no area, "
+                               "so it has no centre of area")
+    # zero areas give NaN (left in place by where=), without the cost of an errstate block
+    out = np.full((len(starts), 2), np.nan)
+    good = ~bad
+    np.divide(np.add.reduceat(fx, starts), area, out=out[:, 0], where=good)
+    np.divide(np.add.reduceat(fy, starts), 2.0 * area, out=out[:, 1], where=good)
+    out += origin
+    return (out, size) if return_areas else out
 
 
 # -- arc-length resampling -----------------------------------------------------------------------
@@ -436,24 +444,29 @@ def _resample_xy(polygons: Sequence[np.ndarray], n: int) -> tuple[np.ndarray, np
     # Lay all outlines, each closed by repeating its first point, along one arc-length axis, with a
     # gap of one unit between consecutive outlines so that no two outlines share an abscissa; then
     # one np.interp per coordinate resamples them all.
-    closed_starts = starts + np.arange(m)
-    offset = np.arange(len(pts) + m) - np.repeat(closed_starts, counts + 1)
-    offset[closed_starts[1:] - 1] = 0
-    offset[-1] = 0
-    src = np.repeat(starts, counts + 1) + offset
-    xc, yc = pts[src, 0], pts[src, 1]
-    step = np.hypot(np.diff(xc), np.diff(yc))
-    ends = closed_starts + counts  # index of each outline's closing point in the closed layout
+    ends = starts + counts + np.arange(m)  # index of each outline's closing point in that layout
+    src = np.arange(len(pts) + m) - np.repeat(np.arange(m), counts + 1)
+    src[ends] = starts
+    closed = pts[src]
+    d = np.diff(closed, axis=0)
+    step = np.hypot(d[:, 0], d[:, 1])
     step[ends[:-1]] = 1.0
-    cum = np.zeros(len(xc))
+    cum = np.empty(len(closed))
+    cum[0] = 0.0
     np.cumsum(step, out=cum[1:])
-    begin = cum[closed_starts]
+    begin = cum[ends - counts]
     length = cum[ends] - begin
     if not (length > 0).all():
         raise ContourError(f"polygons[{int(np.flatnonzero(~(length > 0))[0])}]: all points coincide "
                            "(zero perimeter)")
-    targets = (begin[:, None] + length[:, None] * (np.arange(n) / n)).ravel()
-    return np.interp(targets, cum, xc).reshape(m, n), np.interp(targets, cum, yc).reshape(m, n)
+    targets = (begin[:, None] + length[:, None] * _fractions(n)).ravel()
+    return np.interp(targets, cum, closed[:, 0]).reshape(m, n), np.interp(targets, cum, closed[:, 1]).reshape(m, n)
+
+
+@functools.lru_cache(maxsize=16)
+def _fractions(n: int) -> np.ndarray:
+    """``j / n`` for j = 0..n-1, read-only (the arc-length positions of the samples)."""
+    return _read_only(np.arange(n) / n)
 
 
 def resample_closed(points, n: int) -> np.ndarray:
