@@ -59,6 +59,13 @@ class LocalThresholdBinarizer(Binarizer):
         reduced pixels. Same shape and dtype as ``small``."""
         raise NotImplementedError
 
+    def local_level_rows(self, small: np.ndarray, window: int, rows: list[tuple[int, int]]) -> list[np.ndarray]:
+        """:meth:`local_level`'s rows ``[a, b)`` for each ``(a, b)`` of ``rows``, exactly as the
+        whole would give them. The default computes the whole level; a subclass whose last step
+        looks only a bounded number of rows away can do that step on the rows asked for."""
+        level = self.local_level(small, window)
+        return [level[a:b] for a, b in rows]
+
     def binarize(self, gray: np.ndarray) -> np.ndarray:
         gray, thr, f = self._threshold(gray)
         return self._open(_below(gray, thr, f)).view(bool)
@@ -70,19 +77,21 @@ class LocalThresholdBinarizer(Binarizer):
         h, w = gray.shape
         if bands.shape != (h, w):
             raise InputError(f"bands: made for {bands.shape[1]}x{bands.shape[0]}, the image is {w}x{h}")
-        level, f = self._level(gray)
-        if f not in _REPEAT or h != f * level.shape[0] or w != f * level.shape[1] or (bands.starts % f).any():
+        small, window, f = self._reduced(gray)
+        if f not in _REPEAT or h != f * small.shape[0] or w != f * small.shape[1] or (bands.starts % f).any():
+            level = self.local_level(small, window)
             return self._open(bands.stack(_below(gray, self._from_level(level), f))).view(bool)
-        wide_type, repeat = _REPEAT[f]
+        # the level of the bands' rows only (each band's rows of the reduced image)
+        levels = self.local_level_rows(small, window, [(a // f, -(-b // f)) for a, b in
+                                                       zip(bands.starts.tolist(), bands.stops.tolist())])
         # the threshold of every level value, repeated f times in one wide integer: one LUT call
         # per band instead of _from_level's three operations, a cast and a multiply
         table = _wide_table(self, f)
         w = gray.shape[1]
         out = np.empty(bands.stacked_shape, np.uint8)
         out[bands.offsets + (bands.stops - bands.starts)] = 0  # separator rows
-        for a, b, o in zip(bands.starts.tolist(), bands.stops.tolist(), bands.offsets.tolist()):
+        for a, b, o, rows in zip(bands.starts.tolist(), bands.stops.tolist(), bands.offsets.tolist(), levels):
             # the threshold of the band's rows only, its columns repeated f times
-            rows = level[a // f:-(-b // f)]
             wide = cv2.LUT(rows, table).view(np.uint8)
             if (b - a) % f == 0:
                 # the band's f row phases side by side (each reduced row's f image rows as one
@@ -103,11 +112,16 @@ class LocalThresholdBinarizer(Binarizer):
 
     def _level(self, gray: np.ndarray) -> tuple[np.ndarray, int]:
         """The local level on the reduced image, and the reduction factor."""
+        small, window, f = self._reduced(gray)
+        return self.local_level(small, window), f
+
+    def _reduced(self, gray: np.ndarray) -> tuple[np.ndarray, int, int]:
+        """The reduced image, the window in its pixels, and the reduction factor."""
         window = self.window or 31
         # The local level varies slowly: computing it on a reduced image and enlarging it again
         # costs a fraction of the full-size filter.
         f = max(1, min(self.downscale, window // 5))
-        return self.local_level(_reduce(gray, f), max(3, int(round(window / f)))), f
+        return _reduce(gray, f), max(3, int(round(window / f))), f
 
     def _from_level(self, level: np.ndarray) -> np.ndarray:
         return np.minimum(cv2.convertScaleAbs(level, alpha=1.0 - self.offset), cv2.subtract(level, self.min_contrast))

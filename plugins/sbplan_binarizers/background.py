@@ -43,8 +43,28 @@ class BackgroundBinarizer(LocalThresholdBinarizer):
             raise InputError(f"erosion: must be in (0, 1], got {self.erosion}")
 
     def local_level(self, small: np.ndarray, window: int) -> np.ndarray:
+        brightest, shrink = self._dilated(small, window)
+        return cv2.erode(brightest, shrink, borderType=cv2.BORDER_REPLICATE)
+
+    def local_level_rows(self, small: np.ndarray, window: int, rows: list[tuple[int, int]]) -> list[np.ndarray]:
+        """The erosion only on the rows asked for (the row bands: under half of a frame of a
+        5-row grid) and the rows its square reaches; the dilation on the whole image, which those
+        rows reach nearly all of. Exact: a row of the erosion depends only on the rows its square
+        covers, and where a slab ends at the image's edge the border is replicated as before."""
+        brightest, shrink = self._dilated(small, window)
+        side, h = shrink.shape[0], brightest.shape[0]
+        above = side // 2  # OpenCV's anchor: output row r reads rows r - above .. r - above + side - 1
+        below = side - 1 - above
+        out = []
+        for a, b in rows:
+            lo, hi = max(0, a - above), min(h, b + below)
+            slab = cv2.erode(brightest[lo:hi], shrink, borderType=cv2.BORDER_REPLICATE)
+            out.append(slab[a - lo:b - lo])
+        return out
+
+    def _dilated(self, small: np.ndarray, window: int) -> tuple[np.ndarray, np.ndarray]:
+        """The dilation of ``small`` by the window, and the erosion's square."""
         kernel = cv2.getStructuringElement(cv2.MORPH_RECT, (window, window))
         brightest = cv2.dilate(small, kernel, borderType=cv2.BORDER_REPLICATE)
         side = max(1, int(round(window * self.erosion)))
-        shrink = cv2.getStructuringElement(cv2.MORPH_RECT, (side, side))
-        return cv2.erode(brightest, shrink, borderType=cv2.BORDER_REPLICATE)
+        return brightest, cv2.getStructuringElement(cv2.MORPH_RECT, (side, side))
