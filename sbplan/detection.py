@@ -165,6 +165,8 @@ class Detector:
             self.threshold, _ = derive_threshold(d_sym, d_other)
         areas = np.abs(signed_areas(cal.symbol_polygons))
         self.cell_area = areas.reshape(cal.grid.rows, cal.grid.cols)
+        self._cell_area_flat = self.cell_area.ravel()
+        self._log_area_tolerance = np.log(1.3)
         self.distance_map = signed_distance_map(cal.symbol_polygons, cal.image_shape)
         # each cell's reference outline points, moved into the symbol by what light and focus pull
         # them in (calibrated per point) plus a margin: a found symbol must cover them all
@@ -248,35 +250,37 @@ class Detector:
                 if self.bands is not None:
                     centres = self.bands.to_full(centres)
                 cells = cal.grid.assign(centres)
-                ok = cells[:, 0] >= 0
+                flat = cells[:, 0] * cols + cells[:, 1]  # negative off the grid
+                # idx: the hits still taken for their cell's symbol, narrowed by each test below
+                idx = np.flatnonzero(flat >= 0)
                 # A fixed camera sees each cell's symbol at one size. Light and focus scale every
                 # symbol alike, so the frame's median ratio is divided out; what remains is a
                 # symbol grown or shrunk on its own: partly hidden, or not the symbol at all.
-                ratio = np.full(len(hit), np.inf)
-                ratio[ok] = areas[ok] / self.cell_area[cells[ok, 0], cells[ok, 1]]
-                ok &= np.abs(np.log(ratio)) < np.log(1.3)
+                ratio = areas[idx] / self._cell_area_flat[flat[idx]]
+                idx = idx[np.abs(np.log(ratio)) < self._log_area_tolerance]
                 # ... and at one place: an outline that strays from its cell's reference outline
                 # more than light and focus make it is partly hidden.
-                if ok.any():
-                    idx = np.flatnonzero(ok)
+                if len(idx):
                     picked = hit[idx]
                     # the checked outlines' samples are rows of the descriptors' (resample_xy
                     # remembers them with the batch), so no batch of the checked outlines is made
                     x, y = resample_xy(polygons, SAMPLES)
                     deviation, shift = samples_deviation(x[picked], y[picked], self._band_distance_map)
-                    bent = deviation > cal.outline_tolerance_px
-                    ok[idx[bent]] = False
+                    straight = ~(deviation > cal.outline_tolerance_px)
                     # ... and one that left out a piece of its cell's reference outline is too
                     # (asked only of the outlines the deviation kept: a partly hidden symbol often
                     # fails both, and the second test's cost is per such symbol)
-                    straight = np.flatnonzero(~bent)
-                    if len(straight):
+                    if not straight.all():
                         idx, picked, shift = idx[straight], picked[straight], shift[straight]
-                        flat = cells[idx, 0] * cols + cells[idx, 1]
-                        hidden = hidden_piece(_Picked(polygons, picked), shift, self._band_ref_points[flat],
-                                              self.inward[flat], self.allowance[flat], binary)
-                        ok[idx[hidden]] = False
-                found[cells[ok, 0], cells[ok, 1]] = True
+                    if len(idx):
+                        cell = flat[idx]
+                        hidden = hidden_piece(_Picked(polygons, picked), shift, self._band_ref_points[cell],
+                                              self.inward[cell], self.allowance[cell], binary)
+                        if hidden.any():
+                            idx = idx[~hidden]
+                found.ravel()[flat[idx]] = True
+                ok = np.zeros(len(hit), bool)
+                ok[idx] = True
                 matched, candidates = centres[ok], centres[~ok]
         else:
             lap("describe")
