@@ -28,7 +28,7 @@ from .model import Contour, as_points
 __all__ = [
     "PolygonBatch",
     "signed_area", "signed_areas", "perimeter", "perimeters", "centroid", "centroids",
-    "resample_closed", "resample_many", "resample_xy", "chain_length", "contour_length", "length_filter",
+    "resample_closed", "resample_many", "resample_xy", "resample_complex", "chain_length", "contour_length", "length_filter",
     "pack",
 ]
 
@@ -69,9 +69,9 @@ class PolygonBatch(collections.abc.Sequence):
         self.counts = counts
         self.starts = np.zeros(len(counts), np.int64)
         np.cumsum(counts[:-1], out=self.starts[1:])
-        # n -> (x, y) of resample_xy(self, n): the descriptors and the outline check of one frame
+        # n -> resample_complex(self, n): the descriptors and the outline check of one frame
         # resample the same outlines, the check at half the descriptors' rate
-        self._resampled: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        self._resampled: dict[int, np.ndarray] = {}
 
     @classmethod
     def unchecked(cls, points: np.ndarray, counts: np.ndarray) -> "PolygonBatch":
@@ -111,16 +111,16 @@ class PolygonBatch(collections.abc.Sequence):
         # index of every kept point: each outline's start, then 0, 1, 2, ... within it
         offsets = np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
         out = PolygonBatch.unchecked(self.points[np.repeat(self.starts[idx], counts) + offsets], counts)
-        for n, (x, y) in self._resampled.items():
-            out._resampled[n] = (_read_only(x[idx]), _read_only(y[idx]))
+        for n, w in self._resampled.items():
+            out._resampled[n] = _read_only(w[idx])
         return out
 
-    def _cached_resample(self, n: int) -> tuple[np.ndarray, np.ndarray] | None:
-        for have, (x, y) in self._resampled.items():
+    def _cached_resample(self, n: int) -> np.ndarray | None:
+        for have, w in self._resampled.items():
             if have % n == 0:
                 # sample j of n lies at arc length j/n, which is sample j * have/n of have
                 k = have // n
-                return (x, y) if k == 1 else (x[:, ::k], y[:, ::k])
+                return w if k == 1 else w[:, ::k]
         return None
 
 
@@ -422,28 +422,38 @@ def resample_many(polygons: Sequence[np.ndarray], n: int) -> np.ndarray:
 def resample_xy(polygons: Sequence[np.ndarray], n: int) -> tuple[np.ndarray, np.ndarray]:
     """:func:`resample_many` returning the x and y coordinates as two arrays of shape (m, n).
 
-    The descriptors use this form directly (it saves a gather of point pairs). For a
+    They are the real and imaginary parts of :func:`resample_complex` (views, not copies). For a
     :class:`PolygonBatch` the result is remembered with the batch (and the batches its ``take``
     makes) and read-only: a later call for ``n`` or a divisor of it costs nothing.
+    """
+    w = resample_complex(polygons, n)
+    return w.real, w.imag
+
+
+def resample_complex(polygons: Sequence[np.ndarray], n: int) -> np.ndarray:
+    """:func:`resample_many` as complex numbers ``x + i y``, shape (m, n), complex128.
+
+    The descriptors' FFT takes this form directly, and one interpolation of complex values costs
+    little more than one of real values. Remembered with a :class:`PolygonBatch` like
+    :func:`resample_xy`.
     """
     n = _check_samples(n)
     if isinstance(polygons, PolygonBatch):
         cached = polygons._cached_resample(n)
         if cached is None:
-            cached = tuple(_read_only(a) for a in _resample_xy(polygons, n))
-            polygons._resampled[n] = cached
+            cached = polygons._resampled[n] = _read_only(_resample_complex(polygons, n))
         return cached
-    return _resample_xy(polygons, n)
+    return _resample_complex(polygons, n)
 
 
-def _resample_xy(polygons: Sequence[np.ndarray], n: int) -> tuple[np.ndarray, np.ndarray]:
+def _resample_complex(polygons: Sequence[np.ndarray], n: int) -> np.ndarray:
     pts, starts, counts = pack(polygons)
     m = len(starts)
     if m == 0:
-        return np.zeros((0, n)), np.zeros((0, n))
+        return np.zeros((0, n), np.complex128)
     # Lay all outlines, each closed by repeating its first point, along one arc-length axis, with a
     # gap of one unit between consecutive outlines so that no two outlines share an abscissa; then
-    # one np.interp per coordinate resamples them all.
+    # one np.interp of the points as complex numbers resamples them all.
     ends = starts + counts + np.arange(m)  # index of each outline's closing point in that layout
     src = np.arange(len(pts) + m) - np.repeat(np.arange(m), counts + 1)
     src[ends] = starts
@@ -460,7 +470,8 @@ def _resample_xy(polygons: Sequence[np.ndarray], n: int) -> tuple[np.ndarray, np
         raise ContourError(f"polygons[{int(np.flatnonzero(~(length > 0))[0])}]: all points coincide "
                            "(zero perimeter)")
     targets = (begin[:, None] + length[:, None] * _fractions(n)).ravel()
-    return np.interp(targets, cum, closed[:, 0]).reshape(m, n), np.interp(targets, cum, closed[:, 1]).reshape(m, n)
+    # (x, y) rows of a C-contiguous float64 array are complex128 numbers x + iy in memory
+    return np.interp(targets, cum, closed.view(np.complex128).ravel()).reshape(m, n)
 
 
 @functools.lru_cache(maxsize=16)

@@ -9,7 +9,7 @@ from typing import ClassVar, Sequence
 import numpy as np
 
 from sbplan.errors import ContourError, InputError
-from sbplan.geometry import resample_xy
+from sbplan.geometry import resample_complex
 from sbplan.model import as_points
 from sbplan.stages import DescriptorMatcher, option
 
@@ -44,40 +44,34 @@ def fourier_coefficients(outlines: Sequence[np.ndarray], freqs, *, samples: int 
     k = np.asarray(freqs, dtype=np.int64)
     if k.ndim != 1 or (2 * np.abs(k) >= samples).any():
         raise InputError(f"freqs: expected a 1-D list of frequencies with |k| < samples / 2 = {samples / 2:g}")
-    x, y = resample_xy(outlines, samples)
-    return _coefficients(x, y, _gather_plan(tuple(k.tolist()), samples), samples)
+    return _coefficients(resample_complex(outlines, samples), _gather_plan(tuple(k.tolist()), samples), samples)
 
 
 @functools.lru_cache(maxsize=16)
 def _gather_plan(freqs: tuple[int, ...], samples: int) -> np.ndarray:
-    """Where coefficient ``freqs[i]`` sits in ``[P, conj(Q)]`` (see :func:`_coefficients`): row 0
-    for outlines running counter-clockwise as displayed, row 1 for clockwise ones."""
+    """Where coefficient ``freqs[i]`` sits in the FFT of ``x + i y`` (see :func:`_coefficients`):
+    row 0 for outlines running counter-clockwise as displayed, row 1 for clockwise ones."""
     k = np.asarray(freqs, dtype=np.int64)
-    half = samples // 2 + 1  # rfft's length
-    plus = np.where(k >= 0, k, half - k)      # c_k = P_k, c_-k = conj(Q_k)
-    minus = np.where(k >= 0, half + k, -k)    # reversed outline: c_k -> c_-k
-    return np.stack([plus, minus])
+    # c_k = conj(G_-k); a reversed outline has c_k -> c_-k = conj(G_k)
+    return np.stack([-k % samples, k % samples])
 
 
-def _coefficients(x: np.ndarray, y: np.ndarray, plan: np.ndarray, samples: int = 0) -> np.ndarray:
-    """:func:`fourier_coefficients` from the samples; without ``samples``, times the number of
-    samples (the FFTs' sums, not divided)."""
-    # Two real FFTs give every coefficient of w = x - i y: with X, Y their rfft,
-    # c_k = X_k - i Y_k = P_k and c_-k = conj(X_k) - i conj(Y_k) = conj(X_k + i Y_k) = conj(Q_k)
-    # for k >= 0. [P, conj(Q)] side by side, one gather per row picks the wanted ones.
-    fx = np.fft.rfft(x, axis=1)
-    fy = np.fft.rfft(y, axis=1)
-    if samples:
-        fx /= samples
-        fy /= samples
-    ify = 1j * fy
-    both = np.concatenate([fx - ify, np.conjugate(fx + ify)], axis=1)
+def _coefficients(z: np.ndarray, plan: np.ndarray, samples: int = 0) -> np.ndarray:
+    """:func:`fourier_coefficients` from the samples ``z = x + i y`` (m, samples); without
+    ``samples``, times the number of samples (the FFT's sums, not divided)."""
+    # One complex FFT gives every coefficient of w = x - i y = conj(z): with G the FFT of z,
+    # c_k = (1/n) sum_j conj(z_j) e^(-2 pi i k j / n) = conj(G_-k) / n.
+    g = np.fft.fft(z, axis=1)
     # The shoelace on the samples gives the traversal sense (positive = counter-clockwise as
     # displayed, i.e. in the w plane); reversing a clockwise outline swaps c_k and c_-k.
+    x, y = z.real, z.imag
     area2 = np.einsum("ij,ij->i", y[:, :-1], x[:, 1:]) - np.einsum("ij,ij->i", x[:, :-1], y[:, 1:]) \
         + y[:, -1] * x[:, 0] - x[:, -1] * y[:, 0]
-    rows = np.arange(0, both.size, both.shape[1])[:, None]
-    return both.ravel()[plan[(area2 < 0).view(np.int8)] + rows]
+    rows = np.arange(0, g.size, g.shape[1])[:, None]
+    c = np.conjugate(g.ravel()[plan[(area2 < 0).view(np.int8)] + rows])
+    if samples:
+        c /= samples
+    return c
 
 
 def _frequencies(harmonics: int) -> np.ndarray:
@@ -114,13 +108,13 @@ def fourier_descriptors(outlines: Sequence[np.ndarray], *, samples: int = 128, h
     shape is mirrored (amplitudes alone cannot tell a shape from its mirror image).
     """
     h, gather = _descriptor_plan(harmonics, mirror_terms, samples)
-    x, y = resample_xy(outlines, samples)
-    m = len(x)
+    z = resample_complex(outlines, samples)
+    m = len(z)
     if m == 0:
         return np.zeros((0, harmonics + mirror_terms))
     # The descriptor is made of ratios of coefficients: dividing them all by a power-of-two
     # number of samples is exact and would change no bit of it, so it is skipped.
-    c = _coefficients(x, y, gather, samples if samples & (samples - 1) else 0)
+    c = _coefficients(z, gather, samples if samples & (samples - 1) else 0)
     mag = np.abs(c)
     a1 = mag[:, 0]
     # every outline has a first harmonic when the weakest one beats the bound of the strongest
