@@ -18,7 +18,7 @@ import numpy as np
 from .bands import RowBands
 from .calibration import Calibration, confuser_distances, derive_threshold, length_filter_steps, load_calibration
 from .errors import DetectionError
-from .geometry import PolygonBatch, centroids, resample_xy, signed_areas
+from .geometry import PolygonBatch, centroids, resample_complex, signed_areas
 from .imageio import as_gray, load_image
 from .obstacles import Obstacle, find_obstacles
 from .outline_check import (INNER_MARGIN_PX, SAMPLES, hidden_piece, reference_samples, samples_deviation,
@@ -262,10 +262,10 @@ class Detector:
                 # more than light and focus make it is partly hidden.
                 if len(idx):
                     picked = hit[idx]
-                    # the checked outlines' samples are rows of the descriptors' (resample_xy
+                    # the checked outlines' samples are rows of the descriptors' (resample_complex
                     # remembers them with the batch), so no batch of the checked outlines is made
-                    x, y = resample_xy(polygons, SAMPLES)
-                    deviation, shift = samples_deviation(x[picked], y[picked], self._band_distance_map)
+                    z = resample_complex(polygons, SAMPLES)[picked]
+                    deviation, shift = samples_deviation(z.real, z.imag, self._band_distance_map)
                     straight = ~(deviation > cal.outline_tolerance_px)
                     # ... and one that left out a piece of its cell's reference outline is too
                     # (asked only of the outlines the deviation kept: a partly hidden symbol often

@@ -212,9 +212,9 @@ def hidden_piece(polygons: list[np.ndarray], shifts: np.ndarray, points: np.ndar
     # bilinear on 0/1 rounds to 1 where the ink's sub-pixel edge lies beyond the point
     # bilinear on 0/1 rounds to 1 where the ink's sub-pixel edge lies beyond the point
     shallow = cv2.remap(ink, q[..., 0], q[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT) == 0
-    si, pi = np.nonzero(shallow)
-    if not len(si):
+    if not shallow.any():
         return hidden
+    si, pi = np.nonzero(shallow)
     # the exact signed distance of those few points (a handful per frame, none on most symbols)
     # to their symbol's found outline; OpenCV's is positive inside. One symbol at a time (si is
     # sorted), stopping at its first point found hidden: a hidden symbol has dozens of such points,

@@ -102,7 +102,9 @@ class LocalThresholdBinarizer(Binarizer):
             for phase in range(f):
                 src = gray[a + phase:b:f]
                 cv2.compare(src, wide[:len(src)], cv2.CMP_LT, dst=out[o + phase:o + b - a:f])
-        return self._open(cv2.threshold(out, 0, 1, cv2.THRESH_BINARY)[1]).view(bool)
+        # 0/255 -> 0/1 in place: no second frame-sized array to allocate and pull through the cache
+        cv2.threshold(out, 0, 1, cv2.THRESH_BINARY, dst=out)
+        return self._open(out).view(bool)
 
     def _threshold(self, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
         """The validated image, the threshold on the reduced image, and the reduction factor."""
@@ -131,8 +133,14 @@ class LocalThresholdBinarizer(Binarizer):
         if opening > 1:
             # Shadow rims and texture lines are thin dark streaks; where one touches a symbol it
             # welds onto the symbol's outline. An opening removes streaks thinner than the square.
-            ink = cv2.morphologyEx(ink, cv2.MORPH_OPEN, cv2.getStructuringElement(cv2.MORPH_RECT, (opening, opening)))
+            ink = cv2.morphologyEx(ink, cv2.MORPH_OPEN, _square(opening))
         return ink
+
+
+@functools.lru_cache(maxsize=8)
+def _square(side: int) -> np.ndarray:
+    """The opening's structuring element (made once, not per frame)."""
+    return cv2.getStructuringElement(cv2.MORPH_RECT, (side, side))
 
 
 def _reduce(gray: np.ndarray, f: int) -> np.ndarray:
@@ -184,6 +192,6 @@ def _below(gray: np.ndarray, thr: np.ndarray, f: int) -> np.ndarray:
         for phase in range(f):
             cv2.compare(gray[phase::f], wide, cv2.CMP_LT, dst=out[phase::f])
         # compare gives 0/255; the contract is 0/1 viewed as bool
-        return cv2.threshold(out, 0, 1, cv2.THRESH_BINARY)[1]
+        return cv2.threshold(out, 0, 1, cv2.THRESH_BINARY, dst=out)[1]
     big = cv2.resize(thr, (w, h), interpolation=cv2.INTER_NEAREST)
     return (gray < big).view(np.uint8)
