@@ -189,6 +189,11 @@ class Detector:
         # the length filter's bounds, checked once (length_filter raises on bad ones)
         length_filter_steps([], cal.symbol_points_range)
         self._points_range = (float(cal.symbol_points_range[0]), float(cal.symbol_points_range[1]))
+        # The same, x and y as planes (cell, 2, samples), handed to hidden_piece as (n, samples, 2)
+        # views: its arithmetic keeps that layout, so the probes' x and y go to cv2.remap as rows
+        # of contiguous floats, without the two copies an interleaved (.., 2) array costs.
+        self._ref_planes = np.ascontiguousarray(self._band_ref_points.transpose(0, 2, 1))
+        self._inward_planes = np.ascontiguousarray(self.inward.transpose(0, 2, 1))
         self.stage_names = {"binarizer": self.binarizer.name, "extractor": self.extractor.name,
                             "approximator": self.approximator.name, "matcher": self.matcher.name,
                             "mapper": self.mapper.name}
@@ -274,8 +279,9 @@ class Detector:
                         idx, picked, shift = idx[straight], picked[straight], shift[straight]
                     if len(idx):
                         cell = flat[idx]
-                        hidden = hidden_piece(_Picked(polygons, picked), shift, self._band_ref_points[cell],
-                                              self.inward[cell], self.allowance[cell], binary)
+                        hidden = hidden_piece(_Picked(polygons, picked), shift,
+                                              self._ref_planes[cell].transpose(0, 2, 1),
+                                              self._inward_planes[cell].transpose(0, 2, 1), self.allowance[cell], binary)
                         if hidden.any():
                             idx = idx[~hidden]
                 found.ravel()[flat[idx]] = True
