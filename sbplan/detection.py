@@ -165,6 +165,7 @@ class Detector:
             self.threshold, _ = derive_threshold(d_sym, d_other)
         areas = np.abs(signed_areas(cal.symbol_polygons))
         self.cell_area = areas.reshape(cal.grid.rows, cal.grid.cols)
+        # what find_cells reads per frame, made once: cell areas by flat cell number, the ratio bound
         self._cell_area_flat = self.cell_area.ravel()
         self._log_area_tolerance = np.log(1.3)
         self.distance_map = signed_distance_map(cal.symbol_polygons, cal.image_shape)
@@ -189,9 +190,10 @@ class Detector:
         # the length filter's bounds, checked once (length_filter raises on bad ones)
         length_filter_steps([], cal.symbol_points_range)
         self._points_range = (float(cal.symbol_points_range[0]), float(cal.symbol_points_range[1]))
-        # The same, x and y as planes (cell, 2, samples), handed to hidden_piece as (n, samples, 2)
-        # views: its arithmetic keeps that layout, so the probes' x and y go to cv2.remap as rows
-        # of contiguous floats, without the two copies an interleaved (.., 2) array costs.
+        # The reference points and inward normals with x and y as planes (cell, 2, samples), handed
+        # to hidden_piece as (n, samples, 2) views: its arithmetic keeps that layout, so the probes'
+        # x and y go to cv2.remap as rows of contiguous floats, without the two copies an
+        # interleaved (..., 2) array costs.
         self._ref_planes = np.ascontiguousarray(self._band_ref_points.transpose(0, 2, 1))
         self._inward_planes = np.ascontiguousarray(self.inward.transpose(0, 2, 1))
         self.stage_names = {"binarizer": self.binarizer.name, "extractor": self.extractor.name,
@@ -281,7 +283,8 @@ class Detector:
                         cell = flat[idx]
                         hidden = hidden_piece(_Picked(polygons, picked), shift,
                                               self._ref_planes[cell].transpose(0, 2, 1),
-                                              self._inward_planes[cell].transpose(0, 2, 1), self.allowance[cell], binary)
+                                              self._inward_planes[cell].transpose(0, 2, 1),
+                                              self.allowance[cell], binary)
                         if hidden.any():
                             idx = idx[~hidden]
                 found.ravel()[flat[idx]] = True

@@ -28,7 +28,8 @@ from .model import Contour, as_points
 __all__ = [
     "PolygonBatch",
     "signed_area", "signed_areas", "perimeter", "perimeters", "centroid", "centroids",
-    "resample_closed", "resample_many", "resample_xy", "resample_complex", "chain_length", "contour_length", "length_filter",
+    "resample_closed", "resample_many", "resample_xy", "resample_complex", "chain_length", "contour_length",
+    "length_filter",
     "pack",
 ]
 
