@@ -7,6 +7,7 @@ once (stages, reference descriptors, thresholds), so a stream of frames pays onl
 
 from __future__ import annotations
 
+import collections.abc
 import os
 import time
 from dataclasses import dataclass, field
@@ -17,10 +18,11 @@ import numpy as np
 from .bands import RowBands
 from .calibration import Calibration, confuser_distances, derive_threshold, length_filter_steps, load_calibration
 from .errors import DetectionError
-from .geometry import PolygonBatch, centroids, signed_areas
+from .geometry import PolygonBatch, centroids, resample_complex, signed_areas
 from .imageio import as_gray, load_image
 from .obstacles import Obstacle, find_obstacles
-from .outline_check import INNER_MARGIN_PX, hidden_piece, outline_deviation, reference_samples, signed_distance_map
+from .outline_check import (INNER_MARGIN_PX, SAMPLES, hidden_piece, reference_samples, samples_deviation,
+                            signed_distance_map)
 
 FORMAT = "sbplan.detection/1"
 
@@ -163,6 +165,9 @@ class Detector:
             self.threshold, _ = derive_threshold(d_sym, d_other)
         areas = np.abs(signed_areas(cal.symbol_polygons))
         self.cell_area = areas.reshape(cal.grid.rows, cal.grid.cols)
+        # what find_cells reads per frame, made once: cell areas by flat cell number, the ratio bound
+        self._cell_area_flat = self.cell_area.ravel()
+        self._log_area_tolerance = np.log(1.3)
         self.distance_map = signed_distance_map(cal.symbol_polygons, cal.image_shape)
         # each cell's reference outline points, moved into the symbol by what light and focus pull
         # them in (calibrated per point) plus a margin: a found symbol must cover them all
@@ -182,6 +187,15 @@ class Detector:
                 # separators read "far from any outline": an outline touching one is not a symbol
                 self._band_distance_map = bands.stack(self.distance_map, fill=np.float32(1e3))
                 self._band_ref_points = bands.to_stacked(self.ref_points.reshape(-1, 2)).reshape(self.ref_points.shape)
+        # the length filter's bounds, checked once (length_filter raises on bad ones)
+        length_filter_steps([], cal.symbol_points_range)
+        self._points_range = (float(cal.symbol_points_range[0]), float(cal.symbol_points_range[1]))
+        # The reference points and inward normals with x and y as planes (cell, 2, samples), handed
+        # to hidden_piece as (n, samples, 2) views: its arithmetic keeps that layout, so the probes'
+        # x and y go to cv2.remap as rows of contiguous floats, without the two copies an
+        # interleaved (..., 2) array costs.
+        self._ref_planes = np.ascontiguousarray(self._band_ref_points.transpose(0, 2, 1))
+        self._inward_planes = np.ascontiguousarray(self.inward.transpose(0, 2, 1))
         self.stage_names = {"binarizer": self.binarizer.name, "extractor": self.extractor.name,
                             "approximator": self.approximator.name, "matcher": self.matcher.name,
                             "mapper": self.mapper.name}
@@ -217,7 +231,9 @@ class Detector:
         lap("binarize")
         outer = self.extractor.extract_outer(binary)
         lap("extract")
-        kept = [outer[i] for i in np.flatnonzero(length_filter_steps(outer, cal.symbol_points_range))]
+        # length_filter_steps's test, without its array round trip: one comparison per contour
+        lo, hi = self._points_range
+        kept = [c for c in outer if lo <= len(c.points) <= hi]
         polygons = self.approximator.approximate_many(kept)
         if not isinstance(polygons, PolygonBatch):
             # a plugin's plain list: drop what is not a polygon, pack once for the vectorized steps
@@ -233,30 +249,47 @@ class Detector:
             lap("describe")
             hit = np.flatnonzero(d < self.threshold)
             if len(hit):
-                hit_polygons = polygons if len(hit) == len(polygons) else polygons.take(hit)
-                centres, areas = centroids(hit_polygons, on_zero_area="nan", return_areas=True)
+                # Centres and areas of every polygon, then the hits' rows: cheaper than gathering
+                # the hits' vertices into a batch of their own first (most polygons are hits).
+                centres, areas = centroids(polygons, on_zero_area="nan", return_areas=True)
+                if len(hit) < len(polygons):
+                    centres, areas = centres[hit], areas[hit]
                 if self.bands is not None:
                     centres = self.bands.to_full(centres)
                 cells = cal.grid.assign(centres)
-                ok = cells[:, 0] >= 0
+                flat = cells[:, 0] * cols + cells[:, 1]  # negative off the grid
+                # idx: the hits still taken for their cell's symbol, narrowed by each test below
+                idx = np.flatnonzero(flat >= 0)
                 # A fixed camera sees each cell's symbol at one size. Light and focus scale every
                 # symbol alike, so the frame's median ratio is divided out; what remains is a
                 # symbol grown or shrunk on its own: partly hidden, or not the symbol at all.
-                ratio = np.full(len(hit), np.inf)
-                ratio[ok] = areas[ok] / self.cell_area[cells[ok, 0], cells[ok, 1]]
-                ok &= np.abs(np.log(ratio)) < np.log(1.3)
+                ratio = areas[idx] / self._cell_area_flat[flat[idx]]
+                idx = idx[np.abs(np.log(ratio)) < self._log_area_tolerance]
                 # ... and at one place: an outline that strays from its cell's reference outline
                 # more than light and focus make it is partly hidden.
-                if ok.any():
-                    idx = np.flatnonzero(ok)
-                    checked = hit_polygons if len(idx) == len(hit) else hit_polygons.take(idx)
-                    deviation, shift = outline_deviation(checked, self._band_distance_map, return_shift=True)
+                if len(idx):
+                    picked = hit[idx]
+                    # the checked outlines' samples are rows of the descriptors' (resample_complex
+                    # remembers them with the batch), so no batch of the checked outlines is made
+                    z = resample_complex(polygons, SAMPLES)[picked]
+                    deviation, shift = samples_deviation(z.real, z.imag, self._band_distance_map)
+                    straight = ~(deviation > cal.outline_tolerance_px)
                     # ... and one that left out a piece of its cell's reference outline is too
-                    flat = cells[idx, 0] * cols + cells[idx, 1]
-                    hidden = hidden_piece(checked, shift, self._band_ref_points[flat], self.inward[flat],
-                                          self.allowance[flat], binary)
-                    ok[idx[(deviation > cal.outline_tolerance_px) | hidden]] = False
-                found[cells[ok, 0], cells[ok, 1]] = True
+                    # (asked only of the outlines the deviation kept: a partly hidden symbol often
+                    # fails both, and the second test's cost is per such symbol)
+                    if not straight.all():
+                        idx, picked, shift = idx[straight], picked[straight], shift[straight]
+                    if len(idx):
+                        cell = flat[idx]
+                        hidden = hidden_piece(_Picked(polygons, picked), shift,
+                                              self._ref_planes[cell].transpose(0, 2, 1),
+                                              self._inward_planes[cell].transpose(0, 2, 1),
+                                              self.allowance[cell], binary)
+                        if hidden.any():
+                            idx = idx[~hidden]
+                found.ravel()[flat[idx]] = True
+                ok = np.zeros(len(hit), bool)
+                ok[idx] = True
                 matched, candidates = centres[ok], centres[~ok]
         else:
             lap("describe")
@@ -278,6 +311,24 @@ class Detector:
         timings["total"] = cells.timings_ms["total"] + timings["map"] + timings["obstacles"]
         return Detection(cal, cells.occupied, cells.symbols_found, cells.matched_centres_px, occupancy,
                          obstacles, timings, self.stage_names, cells.candidates_px)
+
+
+class _Picked(collections.abc.Sequence):
+    """The outlines ``batch[i]`` for ``i`` in ``indices``, looked up only when asked for:
+    :func:`~sbplan.outline_check.hidden_piece` reads a handful of them per frame, if any."""
+
+    __slots__ = ("batch", "indices")
+
+    def __init__(self, batch: PolygonBatch, indices: np.ndarray):
+        self.batch, self.indices = batch, indices
+
+    def __len__(self) -> int:
+        return len(self.indices)
+
+    def __getitem__(self, i):
+        if isinstance(i, slice):
+            return [self.batch[int(j)] for j in self.indices[i]]
+        return self.batch[int(self.indices[i])]
 
 
 def detect(image: Any, calibration: Calibration | str | os.PathLike, **stages: Any) -> Detection:

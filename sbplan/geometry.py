@@ -17,6 +17,7 @@ coordinates, and of ``cv2.contourArea(..., oriented=True)``.
 from __future__ import annotations
 
 import collections.abc
+import functools
 from typing import Sequence
 
 import numpy as np
@@ -27,7 +28,8 @@ from .model import Contour, as_points
 __all__ = [
     "PolygonBatch",
     "signed_area", "signed_areas", "perimeter", "perimeters", "centroid", "centroids",
-    "resample_closed", "resample_many", "resample_xy", "chain_length", "contour_length", "length_filter",
+    "resample_closed", "resample_many", "resample_xy", "resample_complex", "chain_length", "contour_length",
+    "length_filter",
     "pack",
 ]
 
@@ -61,13 +63,29 @@ class PolygonBatch(collections.abc.Sequence):
             raise ContourError(f"PolygonBatch: {len(points)} points do not split into outlines of {counts.tolist()}")
         if len(counts) and (counts.min() < 3 or not np.isfinite(points).all()):
             raise ContourError("PolygonBatch: every outline needs at least 3 finite points")
+        self._set(points, counts)
+
+    def _set(self, points: np.ndarray, counts: np.ndarray) -> None:
         self.points = points
         self.counts = counts
         self.starts = np.zeros(len(counts), np.int64)
         np.cumsum(counts[:-1], out=self.starts[1:])
-        # n -> (x, y) of resample_xy(self, n): the descriptors and the outline check of one frame
+        # n -> resample_complex(self, n): the descriptors and the outline check of one frame
         # resample the same outlines, the check at half the descriptors' rate
-        self._resampled: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        self._resampled: dict[int, np.ndarray] = {}
+
+    @classmethod
+    def unchecked(cls, points: np.ndarray, counts: np.ndarray) -> "PolygonBatch":
+        """A batch made without validation, for producers whose output is valid by construction
+        (an approximator's vertices picked from pixel contours, a ``take`` of a batch): the checks
+        cost about as much as the rest of a small batch's construction, once per frame.
+
+        ``points`` must be a float64 (sum N_i, 2) array of finite values, ``counts`` int64 with
+        every N_i >= 3 and summing to ``len(points)``; nothing checks that.
+        """
+        obj = cls.__new__(cls)
+        obj._set(points, counts)
+        return obj
 
     @classmethod
     def from_list(cls, polygons: Sequence[np.ndarray]) -> "PolygonBatch":
@@ -93,17 +111,17 @@ class PolygonBatch(collections.abc.Sequence):
             return PolygonBatch(np.zeros((0, 2)), counts)
         # index of every kept point: each outline's start, then 0, 1, 2, ... within it
         offsets = np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
-        out = PolygonBatch(self.points[np.repeat(self.starts[idx], counts) + offsets], counts)
-        for n, (x, y) in self._resampled.items():
-            out._resampled[n] = (_read_only(x[idx]), _read_only(y[idx]))
+        out = PolygonBatch.unchecked(self.points[np.repeat(self.starts[idx], counts) + offsets], counts)
+        for n, w in self._resampled.items():
+            out._resampled[n] = _read_only(w[idx])
         return out
 
-    def _cached_resample(self, n: int) -> tuple[np.ndarray, np.ndarray] | None:
-        for have, (x, y) in self._resampled.items():
+    def _cached_resample(self, n: int) -> np.ndarray | None:
+        for have, w in self._resampled.items():
             if have % n == 0:
                 # sample j of n lies at arc length j/n, which is sample j * have/n of have
                 k = have // n
-                return (x, y) if k == 1 else (x[:, ::k], y[:, ::k])
+                return w if k == 1 else w[:, ::k]
         return None
 
 
@@ -355,16 +373,23 @@ def centroids(polygons: Sequence[np.ndarray], *, on_zero_area: str = "raise", re
     p = pts - np.repeat(origin, counts, axis=0)
     f, fx, fy = _edge_integrals(p, p[_next_index(starts, counts, len(pts))])
     area = np.add.reduceat(f, starts)
-    scale = np.maximum(1.0, np.maximum.reduceat(np.abs(p).max(axis=1), starts)) ** 2
-    bad = ~(np.abs(area) > 1e-12 * scale)
-    if bad.any() and on_zero_area == "raise":
-        raise ContourError(f"polygons[{int(np.flatnonzero(bad)[0])}]: the polygon encloses no area, "
-                           "so it has no centre of area")
-    with np.errstate(divide="ignore", invalid="ignore"):
-        out = np.stack([np.add.reduceat(fx, starts) / area,
-                        np.add.reduceat(fy, starts) / (2.0 * area)], axis=1) + origin
-    out[bad] = np.nan
-    return (out, np.abs(area)) if return_areas else out
+    size = np.abs(area)
+    # No area is zero unless some is below the threshold of the largest outline: the per-outline
+    # thresholds are only worked out then.
+    bad = ~(size > 1e-12 * max(1.0, float(np.abs(p).max())) ** 2)
+    if bad.any():
+        scale = np.maximum(1.0, np.maximum.reduceat(np.abs(p).max(axis=1), starts)) ** 2
+        bad = ~(size > 1e-12 * scale)
+        if bad.any() and on_zero_area == "raise":
+            raise ContourError(f"polygons[{int(np.flatnonzero(bad)[0])}]: the polygon encloses no area, "
+                               "so it has no centre of area")
+    # zero areas give NaN (left in place by where=), without the cost of an errstate block
+    out = np.full((len(starts), 2), np.nan)
+    good = ~bad
+    np.divide(np.add.reduceat(fx, starts), area, out=out[:, 0], where=good)
+    np.divide(np.add.reduceat(fy, starts), 2.0 * area, out=out[:, 1], where=good)
+    out += origin
+    return (out, size) if return_areas else out
 
 
 # -- arc-length resampling -----------------------------------------------------------------------
@@ -398,46 +423,62 @@ def resample_many(polygons: Sequence[np.ndarray], n: int) -> np.ndarray:
 def resample_xy(polygons: Sequence[np.ndarray], n: int) -> tuple[np.ndarray, np.ndarray]:
     """:func:`resample_many` returning the x and y coordinates as two arrays of shape (m, n).
 
-    The descriptors use this form directly (it saves a gather of point pairs). For a
+    They are the real and imaginary parts of :func:`resample_complex` (views, not copies). For a
     :class:`PolygonBatch` the result is remembered with the batch (and the batches its ``take``
     makes) and read-only: a later call for ``n`` or a divisor of it costs nothing.
+    """
+    w = resample_complex(polygons, n)
+    return w.real, w.imag
+
+
+def resample_complex(polygons: Sequence[np.ndarray], n: int) -> np.ndarray:
+    """:func:`resample_many` as complex numbers ``x + i y``, shape (m, n), complex128.
+
+    The descriptors' FFT takes this form directly, and one interpolation of complex values costs
+    little more than one of real values. Remembered with a :class:`PolygonBatch` like
+    :func:`resample_xy`.
     """
     n = _check_samples(n)
     if isinstance(polygons, PolygonBatch):
         cached = polygons._cached_resample(n)
         if cached is None:
-            cached = tuple(_read_only(a) for a in _resample_xy(polygons, n))
-            polygons._resampled[n] = cached
+            cached = polygons._resampled[n] = _read_only(_resample_complex(polygons, n))
         return cached
-    return _resample_xy(polygons, n)
+    return _resample_complex(polygons, n)
 
 
-def _resample_xy(polygons: Sequence[np.ndarray], n: int) -> tuple[np.ndarray, np.ndarray]:
+def _resample_complex(polygons: Sequence[np.ndarray], n: int) -> np.ndarray:
     pts, starts, counts = pack(polygons)
     m = len(starts)
     if m == 0:
-        return np.zeros((0, n)), np.zeros((0, n))
+        return np.zeros((0, n), np.complex128)
     # Lay all outlines, each closed by repeating its first point, along one arc-length axis, with a
     # gap of one unit between consecutive outlines so that no two outlines share an abscissa; then
-    # one np.interp per coordinate resamples them all.
-    closed_starts = starts + np.arange(m)
-    offset = np.arange(len(pts) + m) - np.repeat(closed_starts, counts + 1)
-    offset[closed_starts[1:] - 1] = 0
-    offset[-1] = 0
-    src = np.repeat(starts, counts + 1) + offset
-    xc, yc = pts[src, 0], pts[src, 1]
-    step = np.hypot(np.diff(xc), np.diff(yc))
-    ends = closed_starts + counts  # index of each outline's closing point in the closed layout
+    # one np.interp of the points as complex numbers resamples them all.
+    ends = starts + counts + np.arange(m)  # index of each outline's closing point in that layout
+    src = np.arange(len(pts) + m) - np.repeat(np.arange(m), counts + 1)
+    src[ends] = starts
+    closed = pts[src]
+    d = np.diff(closed, axis=0)
+    step = np.hypot(d[:, 0], d[:, 1])
     step[ends[:-1]] = 1.0
-    cum = np.zeros(len(xc))
+    cum = np.empty(len(closed))
+    cum[0] = 0.0
     np.cumsum(step, out=cum[1:])
-    begin = cum[closed_starts]
+    begin = cum[ends - counts]
     length = cum[ends] - begin
     if not (length > 0).all():
         raise ContourError(f"polygons[{int(np.flatnonzero(~(length > 0))[0])}]: all points coincide "
                            "(zero perimeter)")
-    targets = (begin[:, None] + length[:, None] * (np.arange(n) / n)).ravel()
-    return np.interp(targets, cum, xc).reshape(m, n), np.interp(targets, cum, yc).reshape(m, n)
+    targets = (begin[:, None] + length[:, None] * _fractions(n)).ravel()
+    # (x, y) rows of a C-contiguous float64 array are complex128 numbers x + iy in memory
+    return np.interp(targets, cum, closed.view(np.complex128).ravel()).reshape(m, n)
+
+
+@functools.lru_cache(maxsize=16)
+def _fractions(n: int) -> np.ndarray:
+    """``j / n`` for j = 0..n-1, read-only (the arc-length positions of the samples)."""
+    return _read_only(np.arange(n) / n)
 
 
 def resample_closed(points, n: int) -> np.ndarray:

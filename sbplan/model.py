@@ -8,6 +8,7 @@ right, y down. Arrays of points have shape ``(N, 2)`` with columns ``(x, y)``; g
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Iterable
 
 import numpy as np
 
@@ -57,6 +58,21 @@ class Contour:
         obj = object.__new__(cls)
         obj.__dict__.update(points=points, is_hole=False, orientation=1, chain=chain, parent=-1)
         return obj
+
+    @classmethod
+    def outers_unchecked(cls, points: "Iterable[np.ndarray]", chain: np.ndarray) -> "list[Contour]":
+        """:meth:`outer_unchecked` of many point arrays sharing one ``chain``: the per-object work
+        is a copy of one prepared attribute dict (about half the cost of building it each time)."""
+        new = object.__new__
+        base = {"is_hole": False, "orientation": 1, "chain": chain, "parent": -1}
+        out = []
+        for p in points:
+            obj = new(cls)
+            d = obj.__dict__
+            d.update(base)
+            d["points"] = p
+            out.append(obj)
+        return out
 
     @property
     def start(self) -> tuple[int, int]:

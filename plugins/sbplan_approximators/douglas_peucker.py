@@ -66,13 +66,30 @@ class DouglasPeucker(ContourApproximator):
         """
         if not contours:
             return PolygonBatch(np.zeros((0, 2)), np.zeros(0, np.int64))
+        if self.relative > 0:
+            return PolygonBatch.from_list([self.approximate(c) for c in contours])
         eps = float(self.epsilon)
+        try:
+            # One OpenCV call per contour and nothing else: the checks per contour cost as much as
+            # approxPolyDP on a symbol's ~200 pixels. OpenCV's int32 points go in as they come
+            # (integer input gives the same vertices as float32 input, since DP only picks input
+            # points); anything else (not a Contour, int64 points) fails here and takes the path
+            # below, as does a contour too short to keep three vertices.
+            out = [cv2.approxPolyDP(c.points, eps, True) for c in contours]
+        except (AttributeError, cv2.error):
+            return self._approximate_checked(contours, eps)
+        counts = np.fromiter(map(len, out), np.int64, len(out))
+        if counts.min() < 3:
+            return self._approximate_checked(contours, eps)
+        # vertices picked from pixel contours: finite, >= 3 per polygon, so no validation again
+        return PolygonBatch.unchecked(np.concatenate(out).reshape(-1, 2).astype(np.float64), counts)
+
+    def _approximate_checked(self, contours, eps: float) -> PolygonBatch:
+        """:meth:`approximate_many`'s general path: per-contour checks and conversions."""
         out = []
         for c in contours:
-            if self.relative > 0 or not isinstance(c, Contour) or len(c.points) < 3:
+            if not isinstance(c, Contour) or len(c.points) < 3:
                 return PolygonBatch.from_list([self.approximate(c) for c in contours])
-            # OpenCV's int32 points as they come (or one conversion); integer input gives the same
-            # vertices as float32 input, since DP only picks input points
             pts = c.points if c.points.dtype == np.int32 else c.points.astype(np.int32)
             poly = cv2.approxPolyDP(pts, eps, True).reshape(-1, 2)
             out.append(poly if len(poly) >= 3 else three_vertices(pts))

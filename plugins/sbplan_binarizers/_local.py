@@ -3,6 +3,7 @@ offset, computed on a reduced image for speed, with thin streaks opened away."""
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, replace
 from typing import ClassVar
 
@@ -58,6 +59,13 @@ class LocalThresholdBinarizer(Binarizer):
         reduced pixels. Same shape and dtype as ``small``."""
         raise NotImplementedError
 
+    def local_level_rows(self, small: np.ndarray, window: int, rows: list[tuple[int, int]]) -> list[np.ndarray]:
+        """:meth:`local_level`'s rows ``[a, b)`` for each ``(a, b)`` of ``rows``, exactly as the
+        whole would give them. The default computes the whole level; a subclass whose last step
+        looks only a bounded number of rows away can do that step on the rows asked for."""
+        level = self.local_level(small, window)
+        return [level[a:b] for a, b in rows]
+
     def binarize(self, gray: np.ndarray) -> np.ndarray:
         gray, thr, f = self._threshold(gray)
         return self._open(_below(gray, thr, f)).view(bool)
@@ -69,19 +77,34 @@ class LocalThresholdBinarizer(Binarizer):
         h, w = gray.shape
         if bands.shape != (h, w):
             raise InputError(f"bands: made for {bands.shape[1]}x{bands.shape[0]}, the image is {w}x{h}")
-        level, f = self._level(gray)
-        if f not in _REPEAT or h != f * level.shape[0] or w != f * level.shape[1] or (bands.starts % f).any():
+        small, window, f = self._reduced(gray)
+        if f not in _REPEAT or h != f * small.shape[0] or w != f * small.shape[1] or (bands.starts % f).any():
+            level = self.local_level(small, window)
             return self._open(bands.stack(_below(gray, self._from_level(level), f))).view(bool)
-        wide_type, repeat = _REPEAT[f]
-        out = np.zeros(bands.stacked_shape, np.uint8)
-        for a, b, o in zip(bands.starts.tolist(), bands.stops.tolist(), bands.offsets.tolist()):
+        # the level of the bands' rows only (each band's rows of the reduced image)
+        levels = self.local_level_rows(small, window, [(a // f, -(-b // f)) for a, b in
+                                                       zip(bands.starts.tolist(), bands.stops.tolist())])
+        # the threshold of every level value, repeated f times in one wide integer: one LUT call
+        # per band instead of _from_level's three operations, a cast and a multiply
+        table = _wide_table(self, f)
+        w = gray.shape[1]
+        out = np.empty(bands.stacked_shape, np.uint8)
+        out[bands.offsets + (bands.stops - bands.starts)] = 0  # separator rows
+        # numpy's comparison writes 0/1 (as bool) where cv2.compare writes 0/255, at the same speed:
+        # the mask comes out as the contract wants it, without a thresholding pass
+        ink = out.view(bool)
+        for a, b, o, rows in zip(bands.starts.tolist(), bands.stops.tolist(), bands.offsets.tolist(), levels):
             # the threshold of the band's rows only, its columns repeated f times
-            rows = level[a // f:-(-b // f)]
-            wide = (self._from_level(rows).astype(wide_type) * repeat).view(np.uint8)
+            wide = cv2.LUT(rows, table).view(np.uint8)
+            if (b - a) % f == 0:
+                # the band's f row phases side by side (each reduced row's f image rows as one
+                # long row) against the threshold row repeated f times: one comparison per band
+                np.less(gray[a:b].reshape(-1, f * w), cv2.repeat(wide, 1, f), out=ink[o:o + b - a].reshape(-1, f * w))
+                continue
             for phase in range(f):
                 src = gray[a + phase:b:f]
-                cv2.compare(src, wide[:len(src)], cv2.CMP_LT, dst=out[o + phase:o + b - a:f])
-        return self._open(cv2.threshold(out, 0, 1, cv2.THRESH_BINARY)[1]).view(bool)
+                np.less(src, wide[:len(src)], out=ink[o + phase:o + b - a:f])
+        return self._open(out).view(bool)
 
     def _threshold(self, gray: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
         """The validated image, the threshold on the reduced image, and the reduction factor."""
@@ -91,11 +114,16 @@ class LocalThresholdBinarizer(Binarizer):
 
     def _level(self, gray: np.ndarray) -> tuple[np.ndarray, int]:
         """The local level on the reduced image, and the reduction factor."""
+        small, window, f = self._reduced(gray)
+        return self.local_level(small, window), f
+
+    def _reduced(self, gray: np.ndarray) -> tuple[np.ndarray, int, int]:
+        """The reduced image, the window in its pixels, and the reduction factor."""
         window = self.window or 31
         # The local level varies slowly: computing it on a reduced image and enlarging it again
         # costs a fraction of the full-size filter.
         f = max(1, min(self.downscale, window // 5))
-        return self.local_level(_reduce(gray, f), max(3, int(round(window / f)))), f
+        return _reduce(gray, f), max(3, int(round(window / f))), f
 
     def _from_level(self, level: np.ndarray) -> np.ndarray:
         return np.minimum(cv2.convertScaleAbs(level, alpha=1.0 - self.offset), cv2.subtract(level, self.min_contrast))
@@ -105,8 +133,14 @@ class LocalThresholdBinarizer(Binarizer):
         if opening > 1:
             # Shadow rims and texture lines are thin dark streaks; where one touches a symbol it
             # welds onto the symbol's outline. An opening removes streaks thinner than the square.
-            ink = cv2.morphologyEx(ink, cv2.MORPH_OPEN, cv2.getStructuringElement(cv2.MORPH_RECT, (opening, opening)))
+            ink = cv2.morphologyEx(ink, cv2.MORPH_OPEN, _square(opening))
         return ink
+
+
+@functools.lru_cache(maxsize=8)
+def _square(side: int) -> np.ndarray:
+    """The opening's structuring element (made once, not per frame)."""
+    return cv2.getStructuringElement(cv2.MORPH_RECT, (side, side))
 
 
 def _reduce(gray: np.ndarray, f: int) -> np.ndarray:
@@ -123,6 +157,17 @@ def _reduce(gray: np.ndarray, f: int) -> np.ndarray:
 
 #: f -> (integer type, multiplier) that repeats a uint8 f times within one wider integer
 _REPEAT = {2: (np.uint16, 0x0101), 4: (np.uint32, 0x01010101)}
+
+
+@functools.lru_cache(maxsize=32)
+def _wide_table(binarizer: LocalThresholdBinarizer, f: int) -> np.ndarray:
+    """The LUT from a level value to its threshold (``binarizer._from_level``, which works value by
+    value, so applied to all 256 values it is exact) repeated f times in one integer of
+    :data:`_REPEAT`'s type, as a type OpenCV's LUT takes (int32 for f = 4: the same bits)."""
+    thr = binarizer._from_level(np.arange(256, dtype=np.uint8)[None, :]).ravel()
+    wide_type, repeat = _REPEAT[f]
+    table = thr.astype(wide_type) * wide_type(repeat)
+    return table.view(np.int32) if wide_type is np.uint32 else table
 
 
 def _below(gray: np.ndarray, thr: np.ndarray, f: int) -> np.ndarray:
@@ -147,6 +192,6 @@ def _below(gray: np.ndarray, thr: np.ndarray, f: int) -> np.ndarray:
         for phase in range(f):
             cv2.compare(gray[phase::f], wide, cv2.CMP_LT, dst=out[phase::f])
         # compare gives 0/255; the contract is 0/1 viewed as bool
-        return cv2.threshold(out, 0, 1, cv2.THRESH_BINARY)[1]
+        return cv2.threshold(out, 0, 1, cv2.THRESH_BINARY, dst=out)[1]
     big = cv2.resize(thr, (w, h), interpolation=cv2.INTER_NEAREST)
     return (gray < big).view(np.uint8)

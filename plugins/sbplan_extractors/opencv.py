@@ -59,7 +59,7 @@ class OpenCVExtractor(BoundaryExtractor):
         if not self.chains:
             # no conversion: this runs once per frame on detection's hot path
             empty = np.zeros(0, np.uint8)
-            return [Contour.outer_unchecked(found[i].reshape(-1, 2), empty) for i in keep]
+            return Contour.outers_unchecked([found[i].reshape(-1, 2) for i in keep], empty)
         found = [found[i] for i in keep]
         lengths = np.fromiter(map(len, found), dtype=np.int64, count=len(found))
         points = np.concatenate(found).reshape(-1, 2).astype(np.int64)

@@ -9,7 +9,7 @@ from typing import ClassVar, Sequence
 import numpy as np
 
 from sbplan.errors import ContourError, InputError
-from sbplan.geometry import resample_xy
+from sbplan.geometry import resample_complex
 from sbplan.model import as_points
 from sbplan.stages import DescriptorMatcher, option
 
@@ -44,19 +44,34 @@ def fourier_coefficients(outlines: Sequence[np.ndarray], freqs, *, samples: int 
     k = np.asarray(freqs, dtype=np.int64)
     if k.ndim != 1 or (2 * np.abs(k) >= samples).any():
         raise InputError(f"freqs: expected a 1-D list of frequencies with |k| < samples / 2 = {samples / 2:g}")
-    x, y = resample_xy(outlines, samples)
-    # Two real FFTs give every coefficient of w = x - i y:
-    # c_k = X_k - i Y_k and c_-k = conj(X_k) - i conj(Y_k) for k >= 0.
-    fx = np.fft.rfft(x, axis=1)[:, np.abs(k)] / samples
-    fy = np.fft.rfft(y, axis=1)[:, np.abs(k)] / samples
-    plus = fx - 1j * fy
-    minus = fx.conj() - 1j * fy.conj()
+    return _coefficients(resample_complex(outlines, samples), _gather_plan(tuple(k.tolist()), samples), samples)
+
+
+@functools.lru_cache(maxsize=16)
+def _gather_plan(freqs: tuple[int, ...], samples: int) -> np.ndarray:
+    """Where coefficient ``freqs[i]`` sits in the FFT of ``x + i y`` (see :func:`_coefficients`):
+    row 0 for outlines running counter-clockwise as displayed, row 1 for clockwise ones."""
+    k = np.asarray(freqs, dtype=np.int64)
+    # c_k = conj(G_-k); a reversed outline has c_k -> c_-k = conj(G_k)
+    return np.stack([-k % samples, k % samples])
+
+
+def _coefficients(z: np.ndarray, plan: np.ndarray, samples: int = 0) -> np.ndarray:
+    """:func:`fourier_coefficients` from the samples ``z = x + i y`` (m, samples); without
+    ``samples``, times the number of samples (the FFT's sums, not divided)."""
+    # One complex FFT gives every coefficient of w = x - i y = conj(z): with G the FFT of z,
+    # c_k = (1/n) sum_j conj(z_j) e^(-2 pi i k j / n) = conj(G_-k) / n.
+    g = np.fft.fft(z, axis=1)
     # The shoelace on the samples gives the traversal sense (positive = counter-clockwise as
     # displayed, i.e. in the w plane); reversing a clockwise outline swaps c_k and c_-k.
+    x, y = z.real, z.imag
     area2 = np.einsum("ij,ij->i", y[:, :-1], x[:, 1:]) - np.einsum("ij,ij->i", x[:, :-1], y[:, 1:]) \
         + y[:, -1] * x[:, 0] - x[:, -1] * y[:, 0]
-    take_plus = (k >= 0)[None, :] != (area2 < 0)[:, None]
-    return np.where(take_plus, plus, minus)
+    rows = np.arange(0, g.size, g.shape[1])[:, None]
+    c = np.conjugate(g.ravel()[plan[(area2 < 0).view(np.int8)] + rows])
+    if samples:
+        c /= samples
+    return c
 
 
 def _frequencies(harmonics: int) -> np.ndarray:
@@ -74,6 +89,13 @@ def _plan(harmonics: int, mirror_terms: int) -> tuple[np.ndarray, np.ndarray]:
     return kept, np.concatenate([[1], kept, 1 + j, 1 - j]).astype(np.int64)
 
 
+@functools.lru_cache(maxsize=16)
+def _descriptor_plan(harmonics: int, mirror_terms: int, samples: int) -> tuple[int, np.ndarray]:
+    """The number of amplitudes kept and :func:`_gather_plan` of all frequencies needed."""
+    kept, freqs = _plan(harmonics, mirror_terms)
+    return len(kept), _gather_plan(tuple(freqs.tolist()), samples)
+
+
 def fourier_descriptors(outlines: Sequence[np.ndarray], *, samples: int = 128, harmonics: int = 20,
                         mirror_terms: int = 4) -> np.ndarray:
     """The FD vectors of many closed outlines, shape (m, harmonics + mirror_terms).
@@ -85,25 +107,34 @@ def fourier_descriptors(outlines: Sequence[np.ndarray], *, samples: int = 128, h
     translation, rotation, scale and start point like the amplitudes, but changing sign when the
     shape is mirrored (amplitudes alone cannot tell a shape from its mirror image).
     """
-    kept, freqs = _plan(harmonics, mirror_terms)
-    c = fourier_coefficients(outlines, freqs, samples=samples)
-    m = len(c)
+    h, gather = _descriptor_plan(harmonics, mirror_terms, samples)
+    z = resample_complex(outlines, samples)
+    m = len(z)
     if m == 0:
         return np.zeros((0, harmonics + mirror_terms))
-    h = len(kept)
-    c1 = c[:, 0]
-    a1 = np.abs(c1)
-    if not (a1 > 1e-12 * np.abs(c).max(axis=1)).all():
-        bad = int(np.flatnonzero(~(a1 > 1e-12 * np.abs(c).max(axis=1)))[0])
-        raise ContourError(f"outlines[{bad}]: degenerate outline (no first harmonic), "
-                           "it has no Fourier descriptor")
-    amps = np.abs(c[:, 1:h + 1]) / a1[:, None]
+    # The descriptor is made of ratios of coefficients: dividing them all by a power-of-two
+    # number of samples is exact and would change no bit of it, so it is skipped.
+    c = _coefficients(z, gather, samples if samples & (samples - 1) else 0)
+    mag = np.abs(c)
+    a1 = mag[:, 0]
+    # every outline has a first harmonic when the weakest one beats the bound of the strongest
+    # outline; only otherwise is each outline's own bound worked out
+    if not a1.min() > 1e-12 * mag.max():
+        degenerate = ~(a1 > 1e-12 * mag.max(axis=1))
+        if degenerate.any():
+            raise ContourError(f"outlines[{int(np.flatnonzero(degenerate)[0])}]: degenerate outline (no "
+                               "first harmonic), it has no Fourier descriptor")
+    out = np.empty((m, h + mirror_terms))
+    np.divide(mag[:, 1:h + 1], a1[:, None], out=out[:, :h])
     if mirror_terms == 0:
-        return amps
-    q = c[:, h + 1:h + 1 + mirror_terms] * c[:, h + 1 + mirror_terms:] / (c1 * c1)[:, None]
-    mag = np.abs(q)
-    chir = np.divide(q.imag, np.sqrt(mag), out=np.zeros_like(mag), where=mag > 0)
-    return np.concatenate([amps, chir], axis=1)
+        return out
+    c1 = c[:, :1]
+    q = c[:, h + 1:h + 1 + mirror_terms] * c[:, h + 1 + mirror_terms:] / (c1 * c1)
+    qmag = np.abs(q)
+    chir = out[:, h:]
+    chir[...] = 0.0
+    np.divide(q.imag, np.sqrt(qmag), out=chir, where=qmag > 0)
+    return out
 
 
 @dataclass(kw_only=True, frozen=True)
