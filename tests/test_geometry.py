@@ -132,3 +132,18 @@ def test_polygon_batch_refuses_bad_outlines(points, counts):
 
     with pytest.raises(ContourError, match="PolygonBatch"):
         PolygonBatch(points, counts)
+
+
+def test_resample_complex_and_xy_agree_for_lists_and_batches():
+    from sbplan.geometry import PolygonBatch, resample_complex, resample_xy
+
+    polys = [star_polygon(s, center=(40.0 * s, 7.0), scale=20.0) for s in range(6)]
+    z = resample_complex(polys, 32)
+    x, y = resample_xy(polys, 32)
+    assert z.shape == (6, 32) and np.allclose(z.real, x, atol=1e-9) and np.allclose(z.imag, y, atol=1e-9)
+    batch = PolygonBatch.from_list(polys)
+    zb = resample_complex(batch, 32)
+    assert np.allclose(zb, z, atol=1e-9)
+    # a later call for a divisor of n reads every other sample of the remembered one
+    x16, _ = resample_xy(batch, 16)
+    assert np.array_equal(x16, zb.real[:, ::2])

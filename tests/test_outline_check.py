@@ -117,3 +117,16 @@ def test_calibration_files_without_inner_tolerances_still_load_and_detect(bench_
     assert old.inner_tolerance_px is None
     occupied = Detector(old)(image).occupied
     assert not occupied[truth.cells == 0].any()
+
+
+def test_samples_deviation_is_outline_deviation_from_given_samples():
+    from sbplan.geometry import resample_xy
+    from sbplan.outline_check import samples_deviation
+
+    square = np.array([[10.0, 10.0], [30.0, 10.0], [30.0, 30.0], [10.0, 30.0]])
+    dmap = signed_distance_map([square], (40, 40))
+    found = [square + [0.4, -0.3], square * [1.0, 1.05]]
+    dev, shift = outline_deviation(found, dmap, return_shift=True)
+    x, y = resample_xy(found, SAMPLES)
+    dev2, shift2 = samples_deviation(x, y, dmap)
+    assert np.allclose(dev, dev2) and np.allclose(shift, shift2)
