@@ -20,8 +20,8 @@ from . import plugins
 from .errors import CalibrationError, InputError
 from .grid import Grid, fit_grid
 from .imageio import as_gray, load_image, write_json
-from .outline_check import (inner_deviations, inner_tolerance, outline_deviation, reference_samples,
-                            signed_distance_map)
+from .outline_check import (edge_contrast, edge_probes, inner_deviations, inner_tolerance, outline_deviation,
+                            reference_samples, signed_distance_map)
 from .workspace import Workspace, load_workspace
 
 FORMAT = "sbplan.calibration/1"
@@ -70,6 +70,11 @@ class Calibration:
         how far that point may lie outside a found outline, beyond the common shift, as the
         degraded copies showed (:func:`sbplan.outline_check.inner_tolerance`). None in calibration
         files written before it existed: detection then uses ``outline_tolerance_px`` everywhere.
+    edge_contrast : ndarray (rows * cols, EDGE_SAMPLES) or None
+        Per cell and point of its reference outline, the relative step from ink to floor the
+        reference shows across it (:func:`sbplan.outline_check.edge_contrast`): detection calls a
+        symbol whole that the outline checks failed when its outline still shows a good part of
+        this step everywhere. None in calibration files written before it existed (no such rescue).
     workspace : Workspace
     """
 
@@ -86,6 +91,7 @@ class Calibration:
     symbol_points_range: tuple[int, int]
     outline_tolerance_px: float = 3.0
     inner_tolerance_px: np.ndarray | None = None
+    edge_contrast: np.ndarray | None = None
     workspace: Workspace = field(default_factory=Workspace)
     stats: dict[str, Any] = field(default_factory=dict)
 
@@ -128,6 +134,8 @@ class Calibration:
                 "outline_tolerance_px": self.outline_tolerance_px,
                 **({} if self.inner_tolerance_px is None else
                    {"inner_tolerance_px": np.round(self.inner_tolerance_px, 3).tolist()}),
+                **({} if self.edge_contrast is None else
+                   {"edge_contrast": np.round(self.edge_contrast, 3).tolist()}),
                 "polygons": [np.round(p, 3).tolist() for p in self.symbol_polygons],
             },
             "other_polygons": [np.round(p, 3).tolist() for p in self.other_polygons],
@@ -161,6 +169,8 @@ class Calibration:
                 outline_tolerance_px=float(sym["outline_tolerance_px"]),
                 inner_tolerance_px=(np.asarray(sym["inner_tolerance_px"], np.float64)
                                     if "inner_tolerance_px" in sym else None),
+                edge_contrast=(np.asarray(sym["edge_contrast"], np.float32)
+                               if "edge_contrast" in sym else None),
                 workspace=Workspace.from_json(data["workspace"]),
                 stats=dict(data.get("stats", {})),
             )
@@ -358,6 +368,7 @@ def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str 
         symbol_points_range=(int(n_points.min() * 0.7), int(np.ceil(n_points.max() * 1.4))),
         outline_tolerance_px=outline_tolerance,
         inner_tolerance_px=inner_tol,
+        edge_contrast=edge_contrast(gray, *edge_probes(symbol_polygons)),
         workspace=workspace,
         stats=stats,
     )

@@ -21,8 +21,9 @@ from .errors import DetectionError
 from .geometry import PolygonBatch, centroids, resample_complex, signed_areas
 from .imageio import as_gray, load_image
 from .obstacles import Obstacle, find_obstacles
-from .outline_check import (INNER_MARGIN_PX, SAMPLES, hidden_piece, reference_samples, samples_deviation,
-                            signed_distance_map)
+from .outline_check import (EDGE_SAMPLES, INNER_MARGIN_PX, SAMPLES, edge_factors, edge_probes, edges_intact,
+                            hidden_piece,
+                            reference_samples, samples_deviation, signed_distance_map)
 
 FORMAT = "sbplan.detection/1"
 
@@ -105,7 +106,8 @@ class CellDetection:
         True where the cell's symbol is missing; ``[row, col]``, row 0 at the top.
     symbols_found : int
     matched_centres_px : ndarray of shape (n, 2)
-        Centres ``(x, y)`` of the symbols found in their cells.
+        Centres ``(x, y)`` of the symbols found in their cells (the reference symbol's centre for a
+        cell the outline checks failed but whose symbol's edge shows all around in the grey image).
     candidates_px : ndarray of shape (m, 2)
         Centres of outlines that matched the symbol's shape but were rejected (off the grid, or
         grown, shrunk or bent against their cell's reference outline).
@@ -196,6 +198,15 @@ class Detector:
         # interleaved (..., 2) array costs.
         self._ref_planes = np.ascontiguousarray(self._band_ref_points.transpose(0, 2, 1))
         self._inward_planes = np.ascontiguousarray(self.inward.transpose(0, 2, 1))
+        # A cell the outline checks call occupied is free after all when the grey image still shows
+        # its symbol's edge all around (sbplan.outline_check.edges_intact): where each reference
+        # outline is read, and the step the reference showed there. Old calibrations have none.
+        n_cells = len(cal.symbol_polygons)
+        self._edge_x = self._edge_y = self._edge_factors = None
+        if cal.edge_contrast is not None and np.shape(cal.edge_contrast) == (n_cells, EDGE_SAMPLES) and n_cells:
+            self._edge_x, self._edge_y = edge_probes(cal.symbol_polygons)
+            self._edge_factors = edge_factors(cal.edge_contrast)
+            self._cell_centres = centroids(cal.symbol_polygons)
         self.stage_names = {"binarizer": self.binarizer.name, "extractor": self.extractor.name,
                             "approximator": self.approximator.name, "matcher": self.matcher.name,
                             "mapper": self.mapper.name}
@@ -293,6 +304,14 @@ class Detector:
                 matched, candidates = centres[ok], centres[~ok]
         else:
             lap("describe")
+        if self._edge_x is not None and not found.all():
+            # the cells called occupied whose symbol's edge still shows all around in the grey image
+            missing = np.flatnonzero(~found.ravel())
+            whole = missing[edges_intact(gray, self._edge_x[missing], self._edge_y[missing],
+                                         self._edge_factors[missing])]
+            if len(whole):
+                found.ravel()[whole] = True
+                matched = np.concatenate([matched, self._cell_centres[whole]])
         lap("match")
         timings["total"] = (time.perf_counter() - t0) * 1e3
         return CellDetection(~found, int(found.sum()), matched, candidates, timings, gray.shape)
