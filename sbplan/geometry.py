@@ -111,10 +111,7 @@ class PolygonBatch(collections.abc.Sequence):
             return PolygonBatch(np.zeros((0, 2)), counts)
         # index of every kept point: each outline's start, then 0, 1, 2, ... within it
         offsets = np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
-        out = PolygonBatch.unchecked(self.points[np.repeat(self.starts[idx], counts) + offsets], counts)
-        for n, w in self._resampled.items():
-            out._resampled[n] = _read_only(w[idx])
-        return out
+        return PolygonBatch.unchecked(self.points[np.repeat(self.starts[idx], counts) + offsets], counts)
 
     def _cached_resample(self, n: int) -> np.ndarray | None:
         for have, w in self._resampled.items():
@@ -424,8 +421,8 @@ def resample_xy(polygons: Sequence[np.ndarray], n: int) -> tuple[np.ndarray, np.
     """:func:`resample_many` returning the x and y coordinates as two arrays of shape (m, n).
 
     They are the real and imaginary parts of :func:`resample_complex` (views, not copies). For a
-    :class:`PolygonBatch` the result is remembered with the batch (and the batches its ``take``
-    makes) and read-only: a later call for ``n`` or a divisor of it costs nothing.
+    :class:`PolygonBatch` the result is remembered with the batch and read-only: a later call for
+    ``n`` or a divisor of it costs nothing.
     """
     w = resample_complex(polygons, n)
     return w.real, w.imag
