@@ -37,20 +37,17 @@ BANDS_WORTH_IT = 0.8
 
 @dataclass(frozen=True, eq=False)
 class Detection:
-    """The result of one detection.
+    """The result of one detection: :class:`CellDetection`'s ``occupied``, ``symbols_found``,
+    ``matched_centres_px`` and ``candidates_px``, and what is built on them.
 
     Attributes
     ----------
-    occupied : ndarray of shape (rows, cols), bool
-        True where the cell's symbol is missing; ``[row, col]``, row 0 at the top.
-    symbols_found : int
-    matched_centres_px : ndarray of shape (n, 2)
-        Centres ``(x, y)`` of the matched symbols that were assigned to a cell.
     occupancy : ndarray of shape (H, W), uint8
         The occupancy image (0 occupied, 255 free), paper figure 14.
     obstacles : list of Obstacle
     timings_ms : dict
-        Milliseconds per stage, in pipeline order, and "total".
+        Milliseconds per stage, in pipeline order (``map`` and ``obstacles`` after
+        :class:`CellDetection`'s), and "total".
     stages : dict
         kind -> stage name used.
     """
