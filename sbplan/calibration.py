@@ -18,6 +18,7 @@ import numpy as np
 
 from . import plugins
 from .errors import CalibrationError, InputError
+from .registration import centre_window, grey_centres
 from .grid import Grid, fit_grid
 from .imageio import as_gray, load_image, write_json
 from .outline_check import (edge_contrast, edge_probes, inner_deviations, inner_tolerance, outline_deviation,
@@ -75,6 +76,10 @@ class Calibration:
         reference shows across it (:func:`sbplan.outline_check.edge_contrast`): detection calls a
         symbol whole that the outline checks failed when its outline still shows a good part of
         this step everywhere. None in calibration files written before it existed (no such rescue).
+    registration_centres_px : ndarray (rows, cols, 2) or None
+        Every cell's symbol's grey-level centre in the reference
+        (:func:`sbplan.registration.grey_centres`), what frames' symbols are compared with to
+        register them to sub-pixel accuracy. None in older files: the grid's centres are used.
     workspace : Workspace
     """
 
@@ -92,6 +97,7 @@ class Calibration:
     outline_tolerance_px: float = 3.0
     inner_tolerance_px: np.ndarray | None = None
     edge_contrast: np.ndarray | None = None
+    registration_centres_px: np.ndarray | None = None
     workspace: Workspace = field(default_factory=Workspace)
     stats: dict[str, Any] = field(default_factory=dict)
 
@@ -136,6 +142,8 @@ class Calibration:
                    {"inner_tolerance_px": np.round(self.inner_tolerance_px, 3).tolist()}),
                 **({} if self.edge_contrast is None else
                    {"edge_contrast": np.round(self.edge_contrast, 3).tolist()}),
+                **({} if self.registration_centres_px is None else
+                   {"registration_centres_px": np.round(self.registration_centres_px, 4).tolist()}),
                 "polygons": [np.round(p, 3).tolist() for p in self.symbol_polygons],
             },
             "other_polygons": [np.round(p, 3).tolist() for p in self.other_polygons],
@@ -171,6 +179,8 @@ class Calibration:
                                     if "inner_tolerance_px" in sym else None),
                 edge_contrast=(np.asarray(sym["edge_contrast"], np.float32)
                                if "edge_contrast" in sym else None),
+                registration_centres_px=(np.asarray(sym["registration_centres_px"], np.float64)
+                                         if "registration_centres_px" in sym else None),
                 workspace=Workspace.from_json(data["workspace"]),
                 stats=dict(data.get("stats", {})),
             )
@@ -369,9 +379,22 @@ def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str 
         outline_tolerance_px=outline_tolerance,
         inner_tolerance_px=inner_tol,
         edge_contrast=edge_contrast(gray, *edge_probes(symbol_polygons)),
+        registration_centres_px=_registration_centres(gray, symbol_polygons, grid),
         workspace=workspace,
         stats=stats,
     )
+
+
+def _registration_centres(gray: np.ndarray, symbol_polygons: list[np.ndarray], grid: Grid) -> np.ndarray:
+    """Each cell's symbol's grey-level centre (rows, cols, 2): what registration pairs frames'
+    symbols with (:func:`sbplan.registration.grey_centres`); the grid's centre where a symbol's
+    box leaves the image."""
+    boxes = np.array([[p[:, 0].min(), p[:, 1].min(), p[:, 0].max(), p[:, 1].max()] for p in symbol_polygons])
+    centres = grey_centres(gray, boxes, centre_window(symbol_polygons))
+    fallback = grid.centres_px.reshape(-1, 2)
+    bad = ~np.isfinite(centres).all(axis=1)
+    centres[bad] = fallback[bad]
+    return centres.reshape(grid.rows, grid.cols, 2)
 
 
 def derive_threshold(symbol_distances: np.ndarray, other_distances: np.ndarray) -> tuple[float, float]:
