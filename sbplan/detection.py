@@ -23,7 +23,7 @@ from .geometry import PolygonBatch, centroids, resample_complex, signed_areas
 from .imageio import as_gray, load_image
 from .obstacles import Obstacle, find_obstacles
 from .registration import INLIER_PX, MIN_SYMBOLS, CameraMotion, apply, centre_window, grey_centres, register
-from .outline_check import (EDGE_SAMPLES, INNER_MARGIN_PX, SAMPLES, edge_factors, edge_probes, edges_intact,
+from .outline_check import (EDGE_SAMPLES, EDGE_SCRATCH_POINTS, scratches_repaired, INNER_MARGIN_PX, SAMPLES, edge_factors, edge_probes, edges_intact,
                             hidden_piece,
                             reference_samples, samples_deviation, signed_distance_map)
 
@@ -38,6 +38,9 @@ BANDS_WORTH_IT = 0.8
 #: Rows a registered symbol must keep from its band's edges; closer, the frame is done again with
 #: bands laid out for the registered pose (a camera that moved more than the margin since the last frame).
 BAND_SPARE_PX = 2.0
+#: Cells called occupied whose scratches are looked for in one frame, at most (wear is a few
+#: symbols here and there; a frame with more broken symbols has obstacles, not wear).
+SCRATCH_CELLS = 24
 #: Symbols whose grey-level centres refine the registration (spread over the grid): 24 pin it to
 #: about 0.05 px on the renderer's scenes at half the cost of all 50.
 REGISTRATION_SYMBOLS = 24
@@ -356,7 +359,18 @@ class Detector:
             if moved:
                 q = motion.to_frame(np.stack([ex, ey], axis=-1))
                 ex, ey = q[..., 0].astype(np.float32), q[..., 1].astype(np.float32)
-            whole = missing[edges_intact(gray, ex, ey, self._edge_factors[missing])]
+            intact = edges_intact(gray, ex, ey, self._edge_factors[missing], max_break=EDGE_SCRATCH_POINTS)
+            # ... or shows it once the thin scratches across it are painted over (wear), asked of
+            # a few cells only: a floor that is mostly occupied is not worn symbols
+            broken = np.flatnonzero(~intact)
+            if 0 < len(broken) <= SCRATCH_CELLS:
+                outlines = [cal.symbol_polygons[c] for c in missing[broken]]
+                if moved:
+                    outlines = [motion.to_frame(o) for o in outlines]
+                intact[broken] = scratches_repaired(gray, outlines, ex[broken], ey[broken],
+                                                    self._edge_factors[missing[broken]],
+                                                    max_break=EDGE_SCRATCH_POINTS)
+            whole = missing[intact]
             if len(whole):
                 found.ravel()[whole] = True
                 matched = np.concatenate([matched, self._cell_centres[whole]])
