@@ -9,16 +9,19 @@ paper's a-priori 0.5.
 
 from __future__ import annotations
 
+import base64
+import binascii
 import os
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
 
 from . import plugins
 from .errors import CalibrationError, InputError
-from .registration import centre_window, grey_centres
+from .registration import centre_window, grey_centres, thumbnail
 from .grid import Grid, fit_grid
 from .imageio import as_gray, load_image, write_json
 from .outline_check import (edge_contrast, edge_probes, inner_deviations, inner_tolerance, outline_deviation,
@@ -80,6 +83,9 @@ class Calibration:
         Every cell's symbol's grey-level centre in the reference
         (:func:`sbplan.registration.grey_centres`), what frames' symbols are compared with to
         register them to sub-pixel accuracy. None in older files: the grid's centres are used.
+    reference_thumbnail : ndarray (H / 8, W / 8), uint8, or None
+        The reference image made 8 times smaller (:func:`sbplan.registration.thumbnail`): its
+        floor texture tells apart camera movements a whole pitch apart. None in older files.
     workspace : Workspace
     """
 
@@ -98,6 +104,7 @@ class Calibration:
     inner_tolerance_px: np.ndarray | None = None
     edge_contrast: np.ndarray | None = None
     registration_centres_px: np.ndarray | None = None
+    reference_thumbnail: np.ndarray | None = None
     workspace: Workspace = field(default_factory=Workspace)
     stats: dict[str, Any] = field(default_factory=dict)
 
@@ -144,6 +151,8 @@ class Calibration:
                    {"edge_contrast": np.round(self.edge_contrast, 3).tolist()}),
                 **({} if self.registration_centres_px is None else
                    {"registration_centres_px": np.round(self.registration_centres_px, 4).tolist()}),
+                **({} if self.reference_thumbnail is None else
+                   {"reference_thumbnail_png": _png_base64(self.reference_thumbnail)}),
                 "polygons": [np.round(p, 3).tolist() for p in self.symbol_polygons],
             },
             "other_polygons": [np.round(p, 3).tolist() for p in self.other_polygons],
@@ -181,6 +190,8 @@ class Calibration:
                                if "edge_contrast" in sym else None),
                 registration_centres_px=(np.asarray(sym["registration_centres_px"], np.float64)
                                          if "registration_centres_px" in sym else None),
+                reference_thumbnail=(_png_from_base64(sym["reference_thumbnail_png"], source)
+                                     if "reference_thumbnail_png" in sym else None),
                 workspace=Workspace.from_json(data["workspace"]),
                 stats=dict(data.get("stats", {})),
             )
@@ -380,9 +391,25 @@ def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str 
         inner_tolerance_px=inner_tol,
         edge_contrast=edge_contrast(gray, *edge_probes(symbol_polygons)),
         registration_centres_px=_registration_centres(gray, symbol_polygons, grid),
+        reference_thumbnail=thumbnail(gray),
         workspace=workspace,
         stats=stats,
     )
+
+
+def _png_base64(image: np.ndarray) -> str:
+    ok, buf = cv2.imencode(".png", image)
+    return base64.b64encode(buf.tobytes()).decode("ascii")
+
+
+def _png_from_base64(text: Any, source: str) -> np.ndarray:
+    try:
+        img = cv2.imdecode(np.frombuffer(base64.b64decode(text, validate=True), np.uint8), cv2.IMREAD_GRAYSCALE)
+    except (TypeError, ValueError, binascii.Error):
+        img = None
+    if img is None:
+        raise CalibrationError(f"{source}: symbol.reference_thumbnail_png is not a base64 PNG image")
+    return img
 
 
 def _registration_centres(gray: np.ndarray, symbol_polygons: list[np.ndarray], grid: Grid) -> np.ndarray:

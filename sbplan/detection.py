@@ -18,7 +18,7 @@ import numpy as np
 
 from .bands import RowBands
 from .calibration import Calibration, confuser_distances, derive_threshold, length_filter_steps, load_calibration
-from .errors import DetectionError
+from .errors import CameraMotionError, DetectionError
 from .geometry import PolygonBatch, centroids, resample_complex, signed_areas
 from .imageio import as_gray, load_image
 from .obstacles import Obstacle, find_obstacles
@@ -288,7 +288,15 @@ class Detector:
         bands = self._bands_for(hint.matrix)
         for attempt in range(2):
             frame = self._symbols(gray, bands, lap)
-            motion = self._registered(gray, frame, hint, bands)
+            try:
+                motion = self._registered(gray, frame, hint, bands)
+            except CameraMotionError:
+                if bands is None or attempt:
+                    raise
+                # the symbols may have left the bands laid out for the last pose: the whole frame
+                bands = None
+                lap("register")
+                continue
             lap("register")
             if attempt or self._bands_hold(bands, motion):
                 break
@@ -416,7 +424,9 @@ class Detector:
             return CameraMotion.none()
         binary, polygons, hit, centres, areas = frame
         shape = self.calibration.image_shape
-        coarse = register(centres, self.calibration.grid, shape, hint=hint.matrix)
+        cal = self.calibration
+        coarse = register(centres, cal.grid, shape, hint=hint.matrix, reference_thumbnail=cal.reference_thumbnail,
+                          frame=gray)
         if coarse.model == "assumed" or not len(hit):
             return coarse
         # the inliers' boxes in the frame, at most REGISTRATION_SYMBOLS of them spread over the grid
@@ -424,7 +434,11 @@ class Detector:
         good = np.isfinite(fine).all(axis=1)
         if good.sum() < MIN_SYMBOLS:
             return coarse
-        return register(fine[good], self._registration_grid, shape, hint=coarse.matrix)
+        # the coarse fit settled any whole-pitch ambiguity: the fine one starts from it
+        fine_motion = register(fine[good], self._registration_grid, shape, hint=coarse.matrix)
+        if coarse.ambiguous_pitch and not fine_motion.ambiguous_pitch:
+            fine_motion = dataclasses.replace(fine_motion, ambiguous_pitch=True, warning=coarse.warning)
+        return fine_motion
 
     def _inlier_boxes(self, polygons: PolygonBatch, hit: np.ndarray, centres: np.ndarray, coarse: CameraMotion,
                       bands: RowBands | None) -> np.ndarray:
