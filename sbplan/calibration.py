@@ -21,7 +21,7 @@ import numpy as np
 
 from . import plugins
 from .errors import CalibrationError, InputError
-from .registration import centre_window, grey_centres, thumbnail
+from .registration import THUMBNAIL_FACTOR, apply, centre_window, grey_centres, thumbnail
 from .grid import Grid, fit_grid
 from .imageio import as_gray, load_image, write_json
 from .outline_check import (edge_contrast, edge_probes, inner_deviations, inner_tolerance, outline_deviation,
@@ -83,8 +83,8 @@ class Calibration:
         Every cell's symbol's grey-level centre in the reference
         (:func:`sbplan.registration.grey_centres`), what frames' symbols are compared with to
         register them to sub-pixel accuracy. None in older files: the grid's centres are used.
-    reference_thumbnail : ndarray (H / 8, W / 8), uint8, or None
-        The reference image made 8 times smaller (:func:`sbplan.registration.thumbnail`): its
+    reference_thumbnail : ndarray (H / 4, W / 4), uint8, or None
+        The reference image made 4 times smaller (:func:`sbplan.registration.thumbnail`): its
         floor texture tells apart camera movements a whole pitch apart. None in older files.
     workspace : Workspace
     """
@@ -123,6 +123,28 @@ class Calibration:
         """Image pixels ``(x, y)`` (N, 2) -> world metres ``(x, y)`` (N, 2), through the grid."""
         lattice = self.grid.px_to_lattice(xy)
         return self.workspace.lattice_to_world(lattice, self.grid.rows)
+
+    def moved(self, matrix: np.ndarray) -> "Calibration":
+        """This calibration for a camera moved by ``matrix`` (3x3, old pixels -> new pixels): every
+        pixel geometry moved (grid, outlines, registration centres, thumbnail); what was measured
+        along the outlines (tolerances, edge contrast) and the match threshold stay."""
+        matrix = np.asarray(matrix, dtype=np.float64)
+        grid = self.grid
+        moved_grid = Grid(grid.rows, grid.cols, apply(matrix, grid.centres_px), matrix @ grid.homography,
+                          grid.tolerance_px)
+        thumb = self.reference_thumbnail
+        if thumb is not None:
+            f = np.diag([1.0 / THUMBNAIL_FACTOR, 1.0 / THUMBNAIL_FACTOR, 1.0])
+            thumb = cv2.warpPerspective(thumb, f @ matrix @ np.linalg.inv(f), (thumb.shape[1], thumb.shape[0]),
+                                        flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        return replace(
+            self, grid=moved_grid,
+            symbol_polygons=[apply(matrix, p) for p in self.symbol_polygons],
+            other_polygons=[apply(matrix, p) for p in self.other_polygons],
+            degraded_polygons=[apply(matrix, p) for p in self.degraded_polygons],
+            registration_centres_px=(None if self.registration_centres_px is None
+                                     else apply(matrix, self.registration_centres_px)),
+            reference_thumbnail=thumb)
 
     def world_bounds(self) -> tuple[float, float, float, float]:
         """The floor covered by the grid's cells, in metres: (xmin, ymin, xmax, ymax)."""
@@ -279,6 +301,43 @@ def _symbol_descriptor_from_image(symbol: Any, *, extractor, approximator, match
     if not shapes.polygons:
         raise CalibrationError("symbol image: no dark shape found in it")
     return shapes.descriptors[int(np.argmax(shapes.areas))]
+
+
+def update_calibration(calibration: Calibration, frame: Any, **stages: Any) -> tuple[Calibration, Any]:
+    """Re-anchor a calibration to the camera's present pose from a frame with obstacles on it.
+
+    The frame is registered to the calibration with the free symbols it shows
+    (:mod:`sbplan.registration`), and the calibration is moved by that movement
+    (:meth:`Calibration.moved`): detection on later frames then starts from the new pose, with no
+    need to empty the floor. Nothing is written here; a movement that cannot be estimated raises
+    before anything changes.
+
+    Parameters
+    ----------
+    calibration : Calibration
+    frame : ndarray (H, W) or (H, W, 3), or a path
+        A current frame from the moved camera (obstacles allowed).
+    **stages
+        Stage overrides, as for :func:`sbplan.detection.detect`.
+
+    Returns
+    -------
+    (Calibration, CameraMotion)
+        The moved calibration, and the movement it was moved by.
+
+    Raises
+    ------
+    CameraMotionError
+        The movement cannot be estimated, or is too large to pair symbols with cells.
+    """
+    from .detection import Detector
+
+    cells = Detector(calibration, **stages).find_cells(frame)
+    motion = cells.camera
+    updated = calibration.moved(motion.matrix)
+    stats = dict(updated.stats)
+    stats["updates"] = [*stats.get("updates", []), {**motion.to_json(), "symbols_found": cells.symbols_found}]
+    return replace(updated, stats=stats), motion
 
 
 def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str | os.PathLike | None = None,

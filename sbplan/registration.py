@@ -54,6 +54,9 @@ __all__ = ["CameraMotion", "register", "apply", "thumbnail", "grey_centres", "ce
 #: Fewest symbols paired with cells for a movement to be estimated (a similarity needs two; four
 #: leave room for one bad pair to show).
 MIN_SYMBOLS = 4
+#: The symbols that move together must be at least this share of those paired with cells: an
+#: obstacle hides symbols (they are not found) but seldom puts symbol-like shapes near cells.
+MIN_INLIER_SHARE = 0.5
 #: Largest root-mean-square distance (pixels) between the paired symbols' centres and their cells'
 #: moved centres: above it the symbols do not move together (a changed view, another floor).
 MAX_RESIDUAL_PX = 1.5
@@ -162,10 +165,11 @@ class CameraMotion:
         }
 
     def summary(self) -> str:
-        """One line for people: ``shift (dx, dy) px, rotation r deg, scale s, residual e px, n symbols``."""
+        """One line for people: ``camera: shift (dx, dy) px, rotation r deg, scale s since calibration
+        (residual e px, n symbols, model)``."""
         if self.model == "none":
-            return "camera movement not estimated"
-        return (f"camera moved by ({self.shift_px[0]:+.2f}, {self.shift_px[1]:+.2f}) px, "
+            return "camera: movement not estimated"
+        return (f"camera: shift ({self.shift_px[0]:+.2f}, {self.shift_px[1]:+.2f}) px, rotation "
                 f"{self.rotation_deg:+.3f} deg, scale {self.scale:.4f} since calibration "
                 f"(residual {self.residual_px:.2f} px, {self.symbols_used} symbols, {self.model})")
 
@@ -279,9 +283,9 @@ def register(centres_px: np.ndarray, grid: "Grid", image_shape: tuple[int, int],
     resid = np.linalg.norm(apply(matrix, ref[flat[ok]]) - centres[ok], axis=1)
     inliers = ok[resid <= inlier_px]
     model = "similarity"
-    if len(inliers) < MIN_SYMBOLS:
-        raise CameraMotionError(f"cannot estimate the camera's movement: only {len(inliers)} of the {len(centres)} "
-                                f"symbols found move together (at least {MIN_SYMBOLS} needed); "
+    if len(inliers) < max(MIN_SYMBOLS, MIN_INLIER_SHARE * n_paired):
+        raise CameraMotionError(f"cannot estimate the camera's movement: only {len(inliers)} of the {n_paired} "
+                                f"symbols found near their cells move together; the view changed; "
                                 f"recalibrate on the empty floor (sbplan calibrate)")
     src, dst = ref[flat[inliers]], centres[inliers]
     matrix = _similarity_lsq(src, dst)
@@ -339,7 +343,7 @@ def _pitch_ambiguity(cells: np.ndarray, grid: "Grid") -> list[tuple[int, int]]:
 
 
 #: The reference thumbnail is the reference image made this many times smaller.
-THUMBNAIL_FACTOR = 8
+THUMBNAIL_FACTOR = 4
 #: The floor's texture decides between movements a pitch apart when the best one's correlation
 #: beats the next one's by this much; below it the smaller movement is kept, with a warning.
 THUMBNAIL_MARGIN = 0.1
@@ -368,7 +372,7 @@ def _view_scores(reference_thumb: np.ndarray, frame: np.ndarray, matrices: list[
     tex = _texture(small)
     # the floor between the symbols: the printed grid looks the same a pitch away, its floor does not
     ref = reference_thumb.astype(np.float32)
-    floor = (ref > np.percentile(ref, 40)).astype(np.uint8)
+    floor = cv2.erode((ref > np.percentile(ref, 40)).astype(np.uint8), np.ones((5, 5), np.uint8))
     s = np.diag([1.0 / f, 1.0 / f, 1.0])
     scores = []
     for m in matrices:

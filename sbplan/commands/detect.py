@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 
 from ._stages import add_stage_arguments, stage_choices
 
@@ -32,6 +33,8 @@ def summary_lines(detection) -> list[str]:
         + " ".join(f"({r},{c})" for r, c in detection.occupied_cells),
         f"obstacles: {len(detection.obstacles)}",
     ]
+    if detection.camera.model != "none":
+        lines.insert(0, detection.camera.summary())
     for ob in detection.obstacles:
         j = ob.to_json()
         lines.append(f"  #{ob.id}: {len(ob.cells)} cells, MAR {j['size_m'][0]:.2f} x {j['size_m'][1]:.2f} m "
@@ -61,6 +64,8 @@ def run(args: argparse.Namespace) -> int:
         export.write_geojson(args.geojson, detection)
     if args.nav2:
         export.write_nav2(args.nav2, detection, resolution=args.nav2_resolution)
+    if detection.camera.warning:
+        print(f"sbplan: warning: {detection.camera.warning}", file=sys.stderr)
     if args.json:
         print(json.dumps(result))
     else:

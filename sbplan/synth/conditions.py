@@ -115,8 +115,14 @@ class Effects:
 
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
-        for key in ("tilt", "motion"):
-            if d[key] is not None:
+        if d["tilt"] is not None:
+            d["tilt"] = list(d["tilt"])
+        # camera movement and wear came later: left out at their defaults, so that the ground
+        # truth of scenes without them reads as it always did
+        for key, default in (("motion", None), ("vibration", 0.0), ("drift", 0.0), ("wear", 0.0)):
+            if d[key] == default:
+                del d[key]
+            elif key == "motion":
                 d[key] = list(d[key])
         return d
 
