@@ -23,9 +23,9 @@ from .geometry import PolygonBatch, centroids, resample_complex, signed_areas
 from .imageio import as_gray, load_image
 from .obstacles import Obstacle, find_obstacles
 from .registration import INLIER_PX, MIN_SYMBOLS, CameraMotion, apply, centre_window, grey_centres, register
-from .outline_check import (EDGE_SAMPLES, EDGE_SCRATCH_POINTS, scratches_repaired, INNER_MARGIN_PX, SAMPLES, edge_factors, edge_probes, edges_intact,
-                            hidden_piece,
-                            reference_samples, samples_deviation, signed_distance_map)
+from .outline_check import (EDGE_SAMPLES, EDGE_SCRATCH_POINTS, INNER_MARGIN_PX, SAMPLES, edge_factors, edge_kept,
+                            edge_probes, hidden_piece, intact_edges, reference_samples, samples_deviation,
+                            scratches_repaired, signed_distance_map)
 
 FORMAT = "sbplan.detection/1"
 
@@ -41,6 +41,8 @@ BAND_SPARE_PX = 2.0
 #: Cells called occupied whose scratches are looked for in one frame, at most (wear is a few
 #: symbols here and there; a frame with more broken symbols has obstacles, not wear).
 SCRATCH_CELLS = 24
+#: Cells whose edge is broken at more than this share of its points are not looked at for scratches.
+SCRATCH_BROKEN_SHARE = 0.3
 #: Symbols whose grey-level centres refine the registration (spread over the grid): 24 pin it to
 #: about 0.05 px on the renderer's scenes at half the cost of all 50.
 REGISTRATION_SYMBOLS = 24
@@ -361,16 +363,19 @@ class Detector:
             ok[idx] = True
             matched, candidates = centres[ok], centres[~ok]
         if self._edge_x is not None and not found.all():
-            # the cells called occupied whose symbol's edge still shows all around in the grey image
+            # the cells called occupied whose symbol's edge still shows all around in the grey image,
+            # but for short breaks where scratches cross it
             missing = np.flatnonzero(~found.ravel())
             ex, ey = self._edge_x[missing], self._edge_y[missing]
             if moved:
                 q = motion.to_frame(np.stack([ex, ey], axis=-1))
                 ex, ey = q[..., 0].astype(np.float32), q[..., 1].astype(np.float32)
-            intact = edges_intact(gray, ex, ey, self._edge_factors[missing], max_break=EDGE_SCRATCH_POINTS)
+            kept = edge_kept(gray, ex, ey, self._edge_factors[missing])
+            intact = intact_edges(kept, max_break=EDGE_SCRATCH_POINTS)
             # ... or shows it once the thin scratches across it are painted over (wear), asked of
-            # a few cells only: a floor that is mostly occupied is not worn symbols
-            broken = np.flatnonzero(~intact)
+            # a few cells only: an obstacle over a symbol breaks most of its edge, scratches a few
+            # points, and a floor that is mostly occupied is not worn symbols
+            broken = np.flatnonzero(~intact & ((~kept).mean(axis=1) <= SCRATCH_BROKEN_SHARE))
             if 0 < len(broken) <= SCRATCH_CELLS:
                 outlines = [cal.symbol_polygons[c] for c in missing[broken]]
                 if moved:

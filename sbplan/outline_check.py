@@ -326,23 +326,28 @@ def edge_factors(reference_contrast: np.ndarray, keep: float = EDGE_KEEP,
     return factors.astype(np.float32)
 
 
-def edges_intact(gray: np.ndarray, x: np.ndarray, y: np.ndarray, factors: np.ndarray, *,
-                 max_break: int = 0) -> np.ndarray:
-    """Which outlines still show their edge all around: at every probed point of each, the grey
-    level inside is below its factor (:func:`edge_factors`) times the level outside, i.e. the
-    point kept more than ``EDGE_KEEP`` of the relative step the reference showed there.
+def edge_kept(gray: np.ndarray, x: np.ndarray, y: np.ndarray, factors: np.ndarray) -> np.ndarray:
+    """At each probed point of each outline, whether the grey level inside is below its factor
+    (:func:`edge_factors`) times the level outside, i.e. the point kept more than ``EDGE_KEEP`` of
+    the relative step the reference showed there (points not probed always keep it).
+
+    ``gray`` (H, W) uint8; ``x``, ``y`` (n, 2, S) from :func:`edge_probes`; ``factors`` (n, S)
+    for the same outlines. Shape (n, S), bool.
+    """
+    if not len(x):
+        return np.zeros((0, x.shape[-1]), bool)
+    v = _edge_levels(_gray_u8(gray), x, y)
+    return v[:, 0] < v[:, 1] * factors
+
+
+def intact_edges(kept: np.ndarray, *, max_break: int = 0) -> np.ndarray:
+    """Which outlines show their edge all around, from :func:`edge_kept` (n, S).
 
     With ``max_break`` > 0, runs of at most that many consecutive broken points (around the closed
     outline) are forgiven: where a thin scratch of floor colour crosses the outline the step is
     gone over its width only, while an obstacle over a real part of the outline breaks a longer run.
-
-    ``gray`` (H, W) uint8; ``x``, ``y`` (n, 2, S) from :func:`edge_probes`; ``factors`` (n, S)
-    for the same outlines. Shape (n,), bool.
+    Shape (n,), bool.
     """
-    if not len(x):
-        return np.zeros(0, bool)
-    v = _edge_levels(_gray_u8(gray), x, y)
-    kept = v[:, 0] < v[:, 1] * factors
     intact = kept.all(axis=1)
     if max_break > 0 and not intact.all():
         # a broken run longer than max_break has max_break + 1 broken points in a row somewhere:
@@ -354,6 +359,18 @@ def edges_intact(gray: np.ndarray, x: np.ndarray, y: np.ndarray, factors: np.nda
             run &= wrapped[:, k:k + broken.shape[1]]
         intact[~intact] = ~run.any(axis=1)
     return intact
+
+
+def edges_intact(gray: np.ndarray, x: np.ndarray, y: np.ndarray, factors: np.ndarray, *,
+                 max_break: int = 0) -> np.ndarray:
+    """Which outlines still show their edge all around: :func:`intact_edges` of :func:`edge_kept`.
+
+    ``gray`` (H, W) uint8; ``x``, ``y`` (n, 2, S) from :func:`edge_probes`; ``factors`` (n, S)
+    for the same outlines. Shape (n,), bool.
+    """
+    if not len(x):
+        return np.zeros(0, bool)
+    return intact_edges(edge_kept(gray, x, y, factors), max_break=max_break)
 
 
 #: The widest scratch (pixels) the repair below takes for wear: a grey opening with a square one

@@ -198,7 +198,7 @@ def _similarity_lsq(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
     return m
 
 
-def _pair(centres: np.ndarray, grid: "Grid", to_calibration: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _pair(centres: np.ndarray, grid: "Grid", to_calibration: np.ndarray, pitch: float) -> tuple[np.ndarray, np.ndarray]:
     """Each centre's nearest cell (flat index, -1 when none is within PAIR_PITCH of a pitch), with
     the centres first mapped to calibration pixels by ``to_calibration``; and the distances."""
     if not len(centres):
@@ -212,7 +212,7 @@ def _pair(centres: np.ndarray, grid: "Grid", to_calibration: np.ndarray) -> tupl
     ref = grid.centres_px.reshape(-1, 2)
     d = np.full(len(centres), np.inf)
     d[inside] = np.linalg.norm(ref[flat[inside]] - guess[inside], axis=1)
-    flat[d > PAIR_PITCH * min(grid.pitch_px)] = -1
+    flat[d > PAIR_PITCH * pitch] = -1
     return flat, d
 
 
@@ -255,7 +255,7 @@ def register(centres_px: np.ndarray, grid: "Grid", image_shape: tuple[int, int],
     centres = centres[finite]
     inlier_px = max(INLIER_PX, RANSAC_PITCH * pitch)
 
-    flat, _ = _pair(centres, grid, np.linalg.inv(hint))
+    flat, _ = _pair(centres, grid, np.linalg.inv(hint), pitch)
     paired = flat >= 0
     n_paired = int(paired.sum())
     if n_paired < MIN_SYMBOLS:
@@ -271,14 +271,14 @@ def register(centres_px: np.ndarray, grid: "Grid", image_shape: tuple[int, int],
     matrix = np.vstack([m2, [0.0, 0.0, 1.0]])
     # pair again with the fitted movement and refit on the inliers, in closed form
     for _ in range(2):
-        flat, _ = _pair(centres, grid, np.linalg.inv(matrix))
+        flat, _ = _pair(centres, grid, np.linalg.inv(matrix), pitch)
         ok = flat >= 0
         resid = np.linalg.norm(apply(matrix, ref[flat[ok]]) - centres[ok], axis=1)
         keep = np.flatnonzero(ok)[resid <= 2 * inlier_px]
         if len(keep) < MIN_SYMBOLS:
             break
         matrix = _similarity_lsq(ref[flat[keep]], centres[keep])
-    flat, _ = _pair(centres, grid, np.linalg.inv(matrix))
+    flat, _ = _pair(centres, grid, np.linalg.inv(matrix), pitch)
     ok = np.flatnonzero(flat >= 0)
     resid = np.linalg.norm(apply(matrix, ref[flat[ok]]) - centres[ok], axis=1)
     inliers = ok[resid <= inlier_px]
