@@ -26,8 +26,8 @@ __version__ = "0.1.0"
 #: public name -> module that defines it
 _LAZY: dict[str, str] = {
     "plugins": "sbplan.plugins",
-    "calibrate": "sbplan.calibration",
-    "Calibration": "sbplan.calibration",
+    "calibrate": "sbplan.detection",
+    "Calibration": "sbplan.detection",
     "detect": "sbplan.detection",
     "Detection": "sbplan.detection",
     "plan": "sbplan.planning",

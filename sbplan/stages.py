@@ -30,7 +30,7 @@ from .errors import InputError
 from .model import Contour
 
 if typing.TYPE_CHECKING:
-    from .bands import RowBands
+    from .detection.bands import RowBands
 
 #: The stage kinds, in pipeline order.
 KINDS = ("binarizer", "extractor", "approximator", "matcher", "mapper", "planner")
@@ -133,7 +133,7 @@ class Binarizer(Stage):
         """
 
     def binarize_bands(self, gray: np.ndarray, bands: RowBands) -> np.ndarray:
-        """The foreground mask of the row bands only, stacked (:meth:`sbplan.bands.RowBands.stack`).
+        """The foreground mask of the row bands only, stacked (:meth:`sbplan.detection.bands.RowBands.stack`).
 
         Detection calls this when the symbols fill only part of the frame's rows. The default
         binarizes the whole image and stacks the bands, which gives the same mask as
@@ -250,7 +250,7 @@ class OccupancyMapper(Stage):
 
         Parameters
         ----------
-        grid : sbplan.grid.Grid
+        grid : sbplan.detection.grid.Grid
             The calibrated grid (cell centres in image pixels, rows x cols).
         occupied : ndarray of shape (rows, cols), bool
             True for occupied cells, indexed ``(row, col)``.

@@ -149,7 +149,7 @@ class CalibratedPipeline:
 
 def make_calibrated_pipeline(floor: TinyFloor | None = None, **stages: Any) -> CalibratedPipeline:
     """Calibrate on ``floor.reference`` (default: :func:`make_tiny_floor`) with optional stages."""
-    from .calibration import calibrate
+    from .detection.calibration import calibrate
 
     floor = floor or make_tiny_floor()
     return CalibratedPipeline(floor, calibrate(floor.reference, **stages))
@@ -387,7 +387,7 @@ def check_binarizer_bands(stage: Binarizer) -> None:
     """``binarize_bands`` gives the stacked mask of the bands: what ``binarize`` finds in them,
     away from the band edges (where a filter may see the band's end instead of the next rows),
     and nothing in the separator rows."""
-    from .bands import RowBands
+    from .detection.bands import RowBands
 
     floor = make_tiny_floor()
     gray = np.array(floor.reference)
@@ -621,7 +621,7 @@ def check_matcher_discriminates(stage: DescriptorMatcher) -> None:
 # mapper
 
 def _grid(rows: int = 3, cols: int = 4, pitch: float = 40.0, origin=(30.0, 25.0)):
-    from .grid import fit_grid
+    from .detection.grid import fit_grid
 
     c, r = np.meshgrid(np.arange(cols), np.arange(rows))
     centres = np.c_[origin[0] + pitch * c.ravel(), origin[1] + pitch * r.ravel()]

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sbplan.bands import RowBands
-from sbplan.calibration import calibrate
+from sbplan.detection.bands import RowBands
+from sbplan.detection.calibration import calibrate
 from sbplan.detection import Detector
 from sbplan.errors import InputError
 from sbplan.evaluation import condition_scenes

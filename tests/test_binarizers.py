@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import sbplan.plugins as plugins
-from sbplan.bands import RowBands
+from sbplan.detection.bands import RowBands
 from sbplan_binarizers.background import _max_filter
 
 

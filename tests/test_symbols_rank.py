@@ -153,7 +153,7 @@ def test_recommended_symbol_meets_every_condition(ranking):
 
 
 def test_recommended_symbol_is_detected_perfectly_on_clean_scenes(ranking):
-    from sbplan.calibration import calibrate
+    from sbplan.detection.calibration import calibrate
     from sbplan.detection import detect
     from sbplan.synth import AMBIGUOUS, FloorSpec, SceneSpec, render_reference, render_scene
 

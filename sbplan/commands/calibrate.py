@@ -22,7 +22,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..calibration import calibrate
+    from ..detection.calibration import calibrate
 
     workspace = args.workspace
     if workspace is None and args.cell_size is None:

@@ -24,7 +24,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def summary_lines(detection) -> list[str]:
-    from ..obstacles import axis_angle
+    from ..detection.obstacles import axis_angle
 
     lines = [
         f"symbols: {detection.symbols_expected} expected, {detection.symbols_found} found",
@@ -42,8 +42,8 @@ def summary_lines(detection) -> list[str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from .. import export
-    from ..calibration import load_calibration
+    from ..detection import exports
+    from ..detection.calibration import load_calibration
     from ..detection import Detector
     from ..imageio import load_image, write_json
 
@@ -54,13 +54,13 @@ def run(args: argparse.Namespace) -> int:
     if args.output:
         write_json(args.output, result)
     if args.overlay:
-        export.write_overlay(args.overlay, image, detection)
+        exports.write_overlay(args.overlay, image, detection)
     if args.occupancy:
-        export.write_occupancy(args.occupancy, detection)
+        exports.write_occupancy(args.occupancy, detection)
     if args.geojson:
-        export.write_geojson(args.geojson, detection)
+        exports.write_geojson(args.geojson, detection)
     if args.nav2:
-        export.write_nav2(args.nav2, detection, resolution=args.nav2_resolution)
+        exports.write_nav2(args.nav2, detection, resolution=args.nav2_resolution)
     if args.json:
         print(json.dumps(result))
     else:

@@ -151,7 +151,7 @@ class Session:
 
     def calibrate(self, stages: dict[str, str]) -> Any:
         """Calibrate on the loaded reference with the chosen stages (kind -> name)."""
-        from ..calibration import calibrate
+        from ..detection.calibration import calibrate
         from ..errors import InputError
 
         if self.reference is None:
@@ -164,7 +164,7 @@ class Session:
         return cal
 
     def load_calibration(self, path: str | os.PathLike) -> Any:
-        from ..calibration import load_calibration
+        from ..detection.calibration import load_calibration
 
         self.calibration = load_calibration(path)
         return self.calibration

@@ -12,9 +12,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from .detection import Detection
-from .geometry import signed_area
-from .imageio import write_atomic, write_image
+from .result import Detection
+from ..geometry import signed_area
+from ..imageio import write_atomic, write_image
 
 _RED, _GREEN, _YELLOW, _CYAN, _WHITE, _BLACK = (40, 40, 230), (60, 200, 60), (0, 220, 255), (230, 200, 0), (255, 255, 255), (0, 0, 0)
 
@@ -22,7 +22,7 @@ _RED, _GREEN, _YELLOW, _CYAN, _WHITE, _BLACK = (40, 40, 230), (60, 200, 60), (0,
 def overlay_image(image: np.ndarray, detection: Detection) -> np.ndarray:
     """The scene with occupied cells shaded red, found symbols marked green, MARs in yellow and
     obstacle numbers (as the paper's figure 12). Returns a BGR image (H, W, 3) uint8."""
-    from .imageio import as_gray
+    from ..imageio import as_gray
 
     gray = as_gray(image)
     out = cv2.cvtColor(gray, cv2.COLOR_GRAY2BGR)
