@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING
 import pluggy
 
 if TYPE_CHECKING:
-    from .plugins import StageRegistry
+    from .registry import StageRegistry
 
 PROJECT = "sbplan"
 hookspec = pluggy.HookspecMarker(PROJECT)

@@ -48,12 +48,12 @@ from typing import Any, Callable, ClassVar, Iterator
 import numpy as np
 import pytest
 
-from . import plugins
+from . import registry
+from .contours import FREEMAN_STEPS, Contour
+from .contracts import (Binarizer, ContourApproximator, ContourExtractor, DescriptorMatcher, OccupancyMapper,
+                        Planner, Stage)
 from .errors import InputError, PlanningError, PluginError
-from .geometry import signed_area
-from .model import FREEMAN_STEPS, Contour
-from .stages import (Binarizer, ContourApproximator, ContourExtractor, DescriptorMatcher, OccupancyMapper,
-                     Planner, Stage)
+from .polygons import signed_area
 
 __all__ = [
     "ApproximatorContract", "BinarizerContract", "CalibratedPipeline", "ExtractorContract", "MapperContract",
@@ -173,7 +173,7 @@ def registered(*classes: type[Stage], origin: str = "test") -> Iterator[None]:
 
     A stage already registered under the same kind and name is replaced and put back afterwards.
     """
-    reg = plugins.registry()
+    reg = registry.registry()
     previous = []
     try:
         for cls in classes:
@@ -193,7 +193,7 @@ def registered(*classes: type[Stage], origin: str = "test") -> Iterator[None]:
 
 @pytest.fixture
 def register_stage() -> Iterator[Callable[..., type[Stage]]]:
-    """``register_stage(cls, origin="test")``: make ``cls`` findable by name (``sbplan.plugins``,
+    """``register_stage(cls, origin="test")``: make ``cls`` findable by name (``sbplan.registry``,
     ``calibrate``, ``detect``, ``plan``) until the end of the test."""
     with contextlib.ExitStack() as stack:
         def add(cls: type[Stage], *, origin: str = "test") -> type[Stage]:
@@ -334,7 +334,7 @@ def check_declaration(stage: Stage) -> None:
     """The class has a kind, a name, a one-line description, and options with help texts that
     survive a round trip through ``config()`` and ``from_strings``."""
     cls = type(stage)
-    assert isinstance(stage, Stage) and cls.kind in plugins.KINDS, f"{cls.__qualname__}: not a stage contract subclass"
+    assert isinstance(stage, Stage) and cls.kind in registry.KINDS, f"{cls.__qualname__}: not a stage contract subclass"
     assert isinstance(cls.name, str) and cls.name and cls.name == cls.name.strip(), f"{cls.__qualname__}: needs a name"
     assert " " not in cls.name, f"{cls.kind} name {cls.name!r}: names are typed on the command line, no spaces"
     desc = cls.description or (cls.__doc__ or "").strip()
@@ -356,7 +356,7 @@ def check_declaration(stage: Stage) -> None:
 
 def check_registered(stage: Stage) -> None:
     """The stage is found by name in the process-wide registry, as the same class."""
-    info = plugins.registry().info(stage.kind, stage.name)
+    info = registry.registry().info(stage.kind, stage.name)
     assert info.cls is type(stage), f"{stage.kind} {stage.name!r}: the registry holds {info.cls!r}"
 
 
@@ -502,7 +502,7 @@ def check_extractor_outer(stage: ContourExtractor, *, seeds=(1, 2, 3)) -> None:
 
 def check_approximator_many(stage: ContourApproximator, *, seed: int = 2) -> None:
     """``approximate_many`` gives what ``approximate`` gives for each contour, in order."""
-    ext = plugins.extractor("opencv")
+    ext = registry.extractor("opencv")
     contours = [c for c in ext.extract(_random_mask(seed)) if len(c.points) >= 8][:12]
     contours.append(_rect_contour(3, 4, 40, 25))
     many = stage.approximate_many(contours)
@@ -530,7 +530,7 @@ def check_approximator_near_contour(stage: ContourApproximator, *, seeds=(1, 2))
     enclosing at least 200 px^2 is kept within 15 %."""
     from shapely.geometry import LineString, Point
 
-    ext = plugins.extractor("opencv")
+    ext = registry.extractor("opencv")
     for seed in seeds:
         contours = [c for c in ext.extract(_random_mask(seed)) if len(c.points) >= 20]
         for c in contours[:12]:
@@ -732,7 +732,7 @@ class StageContract:
     @pytest.fixture
     def stage(self) -> Stage:
         if self.stage_name is not None:
-            stage = plugins.registry().create(self.kind, self.stage_name, **self.stage_options)
+            stage = registry.registry().create(self.kind, self.stage_name, **self.stage_options)
         elif self.stage_class is not None:
             stage = self.stage_class(**self.stage_options)
         else:

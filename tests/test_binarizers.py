@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 import pytest
 
-import sbplan.plugins as plugins
+import sbplan.registry as plugins
 from sbplan.detection.bands import RowBands
 from sbplan_binarizers.background import _max_filter
 

@@ -13,10 +13,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sbplan import plugins
+from sbplan import registry as plugins
+from sbplan.contours import Contour
+from sbplan.contracts import Binarizer, ContourExtractor, DescriptorMatcher, Planner
 from sbplan.errors import UnknownStageError
-from sbplan.model import Contour
-from sbplan.stages import Binarizer, ContourExtractor, DescriptorMatcher, Planner
 from sbplan.testing import (CHECKS, ApproximatorContract, BinarizerContract, ExtractorContract, MapperContract,
                             MatcherContract, PlannerContract, calibrated_pipeline, check_stage, install_plugin, register_stage,
                             registered, sample_outlines, tiny_floor)  # noqa: F401  (fixtures are used by name)
@@ -139,7 +139,7 @@ def test_the_checks_catch_broken_stages(stage, broken_check):
 
 
 def test_declaration_check_wants_help_texts():
-    from sbplan.stages import option
+    from sbplan.contracts import option
     from sbplan.testing import check_declaration
 
     @dataclass(kw_only=True, frozen=True)

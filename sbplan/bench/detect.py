@@ -86,14 +86,14 @@ def _conditions(given: list[str] | None) -> list[str]:
 
 def sbplan_variants(*, all_variants: bool = True) -> list[tuple[str, dict[str, str]]]:
     """``(label, stage overrides)``: the default pipeline, then one registered stage swapped at a time."""
-    from sbplan import plugins
+    from sbplan import registry
     from sbplan.detection.calibration import DEFAULT_STAGES
 
     out = [(DEFAULT, {})]
     if not all_variants:
         return out
     for kind in KINDS:
-        for name in getattr(plugins, f"{kind}_names")():
+        for name in getattr(registry, f"{kind}_names")():
             if name != DEFAULT_STAGES[kind]:
                 out.append((f"sbplan {kind}={name}", {kind: name}))
     return out
@@ -124,8 +124,8 @@ def measure(*, conditions: list[str] | None = None, scenes: int = 5, size: tuple
         time over the ArUco grid's; ``setup``: what was run.
     """
     from sbplan.bench.baselines import AbsDiff, ArucoGrid, Mog2
-    from sbplan.detection.calibration import calibrate
     from sbplan.detection import Detector
+    from sbplan.detection.calibration import calibrate
     from sbplan.errors import InputError, SbplanError
     from sbplan.evaluation import Scores, condition_scenes, score_cells
     from sbplan.synth import FloorSpec

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ._stages import add_stage_arguments, stage_choices
+from ._stage_options import add_stage_arguments, stage_choices
 
 HELP = "calibrate on a reference image of the empty floor and write a calibration file"
 

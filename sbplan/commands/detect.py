@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from ._stages import add_stage_arguments, stage_choices
+from ._stage_options import add_stage_arguments, stage_choices
 
 HELP = "detect occupied cells and obstacles in a scene image"
 
@@ -43,8 +43,8 @@ def summary_lines(detection) -> list[str]:
 
 def run(args: argparse.Namespace) -> int:
     from ..detection import exports
-    from ..detection.calibration import load_calibration
     from ..detection import Detector
+    from ..detection.calibration import load_calibration
     from ..imageio import load_image, write_json
 
     cal = load_calibration(args.calibration)

@@ -16,8 +16,8 @@ from typing import Any
 import numpy as np
 
 from ..errors import DetectionError
-from ..geometry import PolygonBatch, centroids, resample_complex, signed_areas
 from ..imageio import as_gray, load_image
+from ..polygons import PolygonBatch, centroids, resample_complex, signed_areas
 from .bands import RowBands
 from .calibration.file import Calibration, load_calibration
 from .calibration.shapes import length_filter_steps

@@ -12,9 +12,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from .result import Detection
-from ..geometry import signed_area
 from ..imageio import write_atomic, write_image
+from ..polygons import signed_area
+from .result import Detection
 
 _RED, _GREEN, _YELLOW, _CYAN, _WHITE, _BLACK = (40, 40, 230), (60, 200, 60), (0, 220, 255), (230, 200, 0), (255, 255, 255), (0, 0, 0)
 

@@ -12,7 +12,7 @@ import cv2
 import numpy as np
 import shapely
 
-from ..model import as_points
+from ..contours import as_points
 
 
 @dataclass(frozen=True, eq=False)

@@ -15,7 +15,7 @@ import cv2
 import numpy as np
 
 from ..errors import InputError
-from ..geometry import resample_xy
+from ..polygons import resample_xy
 
 #: Points per outline at which the deviation is measured.
 SAMPLES = 64

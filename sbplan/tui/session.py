@@ -30,9 +30,9 @@ def display_path(path: str | os.PathLike | None) -> str:
 
 def stage_names() -> dict[str, list[str]]:
     """The installed stage names of every selectable kind, from the plugin registry."""
-    from .. import plugins
+    from .. import registry
 
-    return {kind: getattr(plugins, f"{kind}_names")() for kind in STAGE_KINDS}
+    return {kind: getattr(registry, f"{kind}_names")() for kind in STAGE_KINDS}
 
 
 def square(centre: Any, side: float) -> np.ndarray:

@@ -16,7 +16,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from ... import plugins
+from ... import registry
 from ...errors import CalibrationError, InputError
 from ...imageio import as_gray, load_image
 from ...workspace import Workspace, load_workspace
@@ -46,7 +46,7 @@ def _symbol_descriptor_from_image(symbol: Any, *, extractor, approximator, match
     # An image of one symbol on a plain ground, at any scale: one global threshold separates them
     # (a local binarizer sized for the floor's symbols would not), and the largest dark shape is it.
     h, w = gray.shape
-    shapes = extract_shapes(gray, binarizer=plugins.binarizer("otsu"), extractor=extractor,
+    shapes = extract_shapes(gray, binarizer=registry.binarizer("otsu"), extractor=extractor,
                             approximator=approximator, matcher=matcher, points_range=(8, 4 * (h + w)))
     if not shapes.polygons:
         raise CalibrationError("symbol image: no dark shape found in it")
@@ -87,7 +87,7 @@ def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str 
         base = workspace or Workspace()
         workspace = replace(base, pitch_m=(float(cell_size), float(cell_size)), origin_m=base.origin_m)
     workspace = workspace or Workspace()
-    reg = plugins.registry()
+    reg = registry.registry()
     chosen = {kind: reg.create(kind, given if given is not None else DEFAULT_STAGES[kind])
               for kind, given in (("binarizer", binarizer), ("extractor", extractor), ("approximator", approximator),
                                   ("matcher", matcher), ("mapper", mapper))}

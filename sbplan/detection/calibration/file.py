@@ -11,10 +11,10 @@ from typing import Any
 
 import numpy as np
 
-from ... import plugins
+from ... import registry
 from ...errors import CalibrationError
-from ...geometry import signed_areas
 from ...imageio import write_json
+from ...polygons import signed_areas
 from ...workspace import Workspace
 from ..grid import Grid
 from .threshold import match_threshold
@@ -88,9 +88,9 @@ class Calibration:
     def stage(self, kind: str, override: Any = None):
         """The stage instance of ``kind``: ``override`` (a name or an instance) or the calibrated one."""
         if override is not None:
-            return plugins.registry().create(kind, override)
+            return registry.registry().create(kind, override)
         spec = self.stages[kind]
-        return plugins.registry().create(kind, spec["name"], **spec.get("options", {}))
+        return registry.registry().create(kind, spec["name"], **spec.get("options", {}))
 
     def matching_for(self, matcher: Any) -> tuple[np.ndarray, float]:
         """The reference descriptor and the match threshold under ``matcher`` (a stage instance).

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...geometry import centroids, length_filter, signed_areas
+from ...polygons import centroids, length_filter, signed_areas
 
 
 @dataclass(frozen=True, eq=False)

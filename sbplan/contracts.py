@@ -26,8 +26,8 @@ from typing import Any, ClassVar, Sequence
 
 import numpy as np
 
+from .contours import Contour
 from .errors import InputError
-from .model import Contour
 
 if typing.TYPE_CHECKING:
     from .detection.bands import RowBands

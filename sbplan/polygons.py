@@ -9,7 +9,7 @@ Python loop over the outlines, because the detection hot path calls them for eve
 image.
 
 Orientation convention: a signed area is *positive* when the outline runs counter-clockwise as
-displayed (y down), matching ``sbplan.model.Contour.orientation == +1`` for outer boundaries.
+displayed (y down), matching ``sbplan.contours.Contour.orientation == +1`` for outer boundaries.
 That is the opposite sign of the textbook shoelace formula applied to raw ``(x, y)`` pixel
 coordinates, and of ``cv2.contourArea(..., oriented=True)``.
 """
@@ -22,8 +22,8 @@ from typing import Sequence
 
 import numpy as np
 
+from .contours import Contour, as_points
 from .errors import ContourError, InputError
-from .model import Contour, as_points
 
 __all__ = [
     "PolygonBatch",
@@ -246,7 +246,7 @@ def chain_length(chain) -> float:
 def contour_length(contour) -> float:
     """Length of a pixel contour: the sum of its chain's step lengths.
 
-    A :class:`~sbplan.model.Contour` with a chain is measured on the chain; anything else is
+    A :class:`~sbplan.contours.Contour` with a chain is measured on the chain; anything else is
     measured as the closed polygon through its points (identical for an 8-connected pixel chain).
     A one- or two-pixel contour has the length of its closed point path (0 for one pixel).
     """

@@ -1,6 +1,6 @@
 """The stage registry and the public lookup API.
 
-``sbplan.plugins.matcher("fourier")`` returns a ready instance of the matcher registered as
+``sbplan.registry.matcher("fourier")`` returns a ready instance of the matcher registered as
 ``fourier``; ``matcher_names()`` lists the installed names. The same pair exists for every kind:
 ``binarizer``, ``extractor``, ``approximator``, ``matcher``, ``mapper``, ``planner``.
 
@@ -20,8 +20,8 @@ from typing import Any
 import pluggy
 
 from . import hookspecs
+from .contracts import CONTRACTS, KINDS, Stage
 from .errors import PluginError, UnknownStageError
-from .stages import CONTRACTS, KINDS, Stage
 
 ENTRY_POINT_GROUP = "sbplan"
 
