@@ -17,7 +17,7 @@ from sbplan.detection import Detector, detect
 from sbplan.detection import exports as export
 from sbplan.detection.calibration import Calibration, calibrate, load_calibration
 from sbplan.errors import CalibrationError, DetectionError
-from sbplan.evaluation import Scores, condition_scenes, score_cells
+from sbplan.bench.evaluation import Scores, condition_scenes, score_cells
 from sbplan.detection.obstacles import mar_opencv, mar_shapely
 from sbplan.synth import FloorSpec, SceneSpec, render_reference, render_scene
 

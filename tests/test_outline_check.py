@@ -13,7 +13,7 @@ from sbplan.detection import Detector
 from sbplan.detection.calibration import Calibration, calibrate
 from sbplan.detection.outline_checks import (INNER_MARGIN_PX, SAMPLES, hidden_piece, inner_tolerance, outline_deviation,
                                              reference_samples, signed_distance_map, signed_distances_to_polygon)
-from sbplan.evaluation import condition_scenes
+from sbplan.bench.evaluation import condition_scenes
 
 # an L with a thin flag-like tip to the right, as a fixed camera would see one symbol
 SYMBOL = np.array([[20, 20], [70, 20], [52, 32], [60, 44], [34, 44], [34, 80], [20, 80]], float)

@@ -127,7 +127,7 @@ def measure(*, conditions: list[str] | None = None, scenes: int = 5, size: tuple
     from sbplan.detection import Detector
     from sbplan.detection.calibration import calibrate
     from sbplan.errors import InputError, SbplanError
-    from sbplan.evaluation import Scores, condition_scenes, score_cells
+    from sbplan.bench.evaluation import Scores, condition_scenes, score_cells
     from sbplan.synth import FloorSpec
 
     names = _conditions(conditions)
