@@ -34,7 +34,7 @@ def sbplan_register_stages(registry: "StageRegistry") -> None:
     """Add stage classes to the registry.
 
     Call ``registry.add(cls)`` once per class; ``cls`` subclasses one of the contracts in
-    :mod:`sbplan.stages` and has a unique ``name`` within its kind. The kind comes from the class.
+    :mod:`sbplan.contracts` and has a unique ``name`` within its kind. The kind comes from the class.
     """
 
 

@@ -64,7 +64,7 @@ class StageRegistry:
         """Register a stage class; its kind comes from the contract it subclasses."""
         kind = next((k for k, base in CONTRACTS.items() if isinstance(cls, type) and issubclass(cls, base)), None)
         if kind is None:
-            raise PluginError(f"{cls!r} does not subclass a stage contract of sbplan.stages")
+            raise PluginError(f"{cls!r} does not subclass a stage contract of sbplan.contracts")
         if not cls.name or not isinstance(cls.name, str):
             raise PluginError(f"{kind} class {cls.__qualname__} has no name")
         key = (kind, cls.name)

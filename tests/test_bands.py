@@ -1,4 +1,4 @@
-"""Row bands (sbplan.bands) and the detection that uses them."""
+"""Row bands (sbplan.detection.bands) and the detection that uses them."""
 
 from __future__ import annotations
 

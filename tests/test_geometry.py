@@ -1,4 +1,4 @@
-"""sbplan.geometry: equation (1), areas, perimeters, resampling and the length filter."""
+"""sbplan.polygons: equation (1), areas, perimeters, resampling and the length filter."""
 
 import numpy as np
 import pytest

@@ -8,7 +8,7 @@ import sys
 
 def test_core_and_planner_api_do_not_import_textual():
     code = (
-        "import sys, sbplan, sbplan.plugins, sbplan.calibration, sbplan.detection, sbplan.detection.exports\n"
+        "import sys, sbplan, sbplan.registry, sbplan.detection, sbplan.detection.exports\n"
         "from sbplan import plan, replan, calibrate, detect\n"
         "sbplan.registry.stages()\n"
         "bad = sorted(m for m in sys.modules if m == 'textual' or m.startswith('textual.'))\n"

@@ -1,4 +1,4 @@
-"""Obstacle loaders on real files (sbplan.export outputs of a detection, the OMPL maze images) and
+"""Obstacle loaders on real files (sbplan.detection.exports outputs of a detection, the OMPL maze images) and
 the ``sbplan plan`` command (subprocess: exit codes, one-line errors, no OMPL log without -v)."""
 
 from __future__ import annotations
