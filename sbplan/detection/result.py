@@ -9,6 +9,7 @@ import numpy as np
 
 from .calibration.file import Calibration
 from .obstacles import Obstacle
+from .registration import CameraMotion
 
 FORMAT = "sbplan.detection/1"
 
@@ -39,6 +40,7 @@ class Detection:
     timings_ms: dict[str, float]
     stages: dict[str, str]
     candidates_px: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    camera: CameraMotion = field(default_factory=CameraMotion.none)
 
     @property
     def occupied_cells(self) -> list[tuple[int, int]]:
@@ -66,6 +68,7 @@ class Detection:
                 "robot_radius_m": cal.workspace.robot_radius_m,
                 "frame": "metres; x right along the columns, y up toward row 0",
             },
+            "camera": self.camera.to_json(),
             "stages": dict(self.stages),
             "timings_ms": {k: round(v, 4) for k, v in self.timings_ms.items()},
         }
@@ -89,6 +92,9 @@ class CellDetection:
     timings_ms : dict
         Milliseconds per stage up to "match", and "total".
     image_shape : (H, W)
+    camera : CameraMotion
+        The camera's movement since calibration, as this frame showed it
+        (:mod:`sbplan.detection.registration`). Every pixel coordinate of the result is the calibration's.
     """
 
     occupied: np.ndarray
@@ -97,3 +103,4 @@ class CellDetection:
     candidates_px: np.ndarray
     timings_ms: dict[str, float]
     image_shape: tuple[int, int]
+    camera: CameraMotion = field(default_factory=CameraMotion.none)

@@ -23,6 +23,7 @@ from ...workspace import Workspace, load_workspace
 from ..grid import Grid, fit_grid
 from ..outline_checks import (edge_contrast, edge_probes, inner_deviations, inner_tolerance, outline_deviation,
                               reference_samples, signed_distance_map)
+from ..registration import centre_window, grey_centres
 from .file import Calibration
 from .shapes import Shapes, extract_shapes
 from .threshold import match_threshold
@@ -162,9 +163,22 @@ def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str 
         outline_tolerance_px=outline_tolerance,
         inner_tolerance_px=inner_tol,
         edge_contrast=edge_contrast(gray, *edge_probes(symbol_polygons)),
+        registration_centres_px=_registration_centres(gray, symbol_polygons, grid),
         workspace=workspace,
         stats=stats,
     )
+
+
+def _registration_centres(gray: np.ndarray, symbol_polygons: list[np.ndarray], grid: Grid) -> np.ndarray:
+    """Each cell's symbol's grey-level centre (rows, cols, 2): what registration pairs frames'
+    symbols with (:func:`sbplan.detection.registration.grey_centres`); the grid's centre where a
+    symbol's box leaves the image."""
+    boxes = np.array([[p[:, 0].min(), p[:, 1].min(), p[:, 0].max(), p[:, 1].max()] for p in symbol_polygons])
+    centres = grey_centres(gray, boxes, centre_window(symbol_polygons))
+    fallback = grid.centres_px.reshape(-1, 2)
+    bad = ~np.isfinite(centres).all(axis=1)
+    centres[bad] = fallback[bad]
+    return centres.reshape(grid.rows, grid.cols, 2)
 
 
 def _degraded_symbols(gray: np.ndarray, grid: Grid, descriptor: np.ndarray, cell_area: np.ndarray,

@@ -61,6 +61,10 @@ class Calibration:
         reference shows across it (:func:`sbplan.detection.outline_checks.edge_contrast`): detection calls a
         symbol whole that the outline checks failed when its outline still shows a good part of
         this step everywhere. None in calibration files written before it existed (no such rescue).
+    registration_centres_px : ndarray (rows, cols, 2) or None
+        Every cell's symbol's grey-level centre in the reference
+        (:func:`sbplan.detection.registration.grey_centres`), what frames' symbols are compared with
+        to register them to sub-pixel accuracy. None in older files: the grid's centres are used.
     workspace : Workspace
     """
 
@@ -78,6 +82,7 @@ class Calibration:
     outline_tolerance_px: float = 3.0
     inner_tolerance_px: np.ndarray | None = None
     edge_contrast: np.ndarray | None = None
+    registration_centres_px: np.ndarray | None = None
     workspace: Workspace = field(default_factory=Workspace)
     stats: dict[str, Any] = field(default_factory=dict)
 
@@ -148,6 +153,8 @@ class Calibration:
                    {"inner_tolerance_px": np.round(self.inner_tolerance_px, 3).tolist()}),
                 **({} if self.edge_contrast is None else
                    {"edge_contrast": np.round(self.edge_contrast, 3).tolist()}),
+                **({} if self.registration_centres_px is None else
+                   {"registration_centres_px": np.round(self.registration_centres_px, 4).tolist()}),
                 "polygons": [np.round(p, 3).tolist() for p in self.symbol_polygons],
             },
             "other_polygons": [np.round(p, 3).tolist() for p in self.other_polygons],
@@ -183,6 +190,8 @@ class Calibration:
                                     if "inner_tolerance_px" in sym else None),
                 edge_contrast=(np.asarray(sym["edge_contrast"], np.float32)
                                if "edge_contrast" in sym else None),
+                registration_centres_px=(np.asarray(sym["registration_centres_px"], np.float64)
+                                         if "registration_centres_px" in sym else None),
                 workspace=Workspace.from_json(data["workspace"]),
                 stats=dict(data.get("stats", {})),
             )
