@@ -15,15 +15,16 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import DetectionError
+from ..errors import CameraMotionError, DetectionError
 from ..imageio import as_gray, load_image
 from ..polygons import PolygonBatch, centroids, resample_complex, signed_areas
 from .bands import RowBands
 from .calibration.file import Calibration, load_calibration
 from .calibration.shapes import length_filter_steps
 from .obstacles import find_obstacles
-from .outline_checks import (EDGE_SAMPLES, INNER_MARGIN_PX, SAMPLES, edge_factors, edge_probes, edges_intact,
-                             hidden_piece, reference_samples, samples_deviation, signed_distance_map)
+from .outline_checks import (EDGE_SAMPLES, EDGE_SCRATCH_POINTS, INNER_MARGIN_PX, SAMPLES, edge_factors, edge_probes,
+                             edges_intact, hidden_piece, reference_samples, samples_deviation, scratches_repaired,
+                             signed_distance_map)
 from .registration import INLIER_PX, MIN_SYMBOLS, CameraMotion, apply, centre_window, grey_centres, register
 from .result import CellDetection, Detection
 
@@ -36,6 +37,9 @@ BANDS_WORTH_IT = 0.8
 #: Rows a registered symbol must keep from its band's edges; closer, the frame is done again with
 #: bands laid out for the registered pose (a camera that moved more than the margin since the last frame).
 BAND_SPARE_PX = 2.0
+#: Cells called occupied whose scratches are looked for in one frame, at most (wear is a few
+#: symbols here and there; a frame with more broken symbols has obstacles, not wear).
+SCRATCH_CELLS = 24
 #: Symbols whose grey-level centres refine the registration (spread over the grid): 24 pin it to
 #: about 0.05 px on the renderer's scenes at half the cost of all 50.
 REGISTRATION_SYMBOLS = 24
@@ -176,7 +180,15 @@ class Detector:
         bands = self._bands_for(hint.matrix)
         for attempt in range(2):
             frame = self._symbols(gray, bands, lap)
-            motion = self._registered(gray, frame, hint, bands)
+            try:
+                motion = self._registered(gray, frame, hint, bands)
+            except CameraMotionError:
+                if bands is None or attempt:
+                    raise
+                # the symbols may have left the bands laid out for the last pose: the whole frame
+                bands = None
+                lap("register")
+                continue
             lap("register")
             if attempt or self._bands_hold(bands, motion):
                 break
@@ -247,7 +259,18 @@ class Detector:
             if moved:
                 q = motion.to_frame(np.stack([ex, ey], axis=-1))
                 ex, ey = q[..., 0].astype(np.float32), q[..., 1].astype(np.float32)
-            whole = missing[edges_intact(gray, ex, ey, self._edge_factors[missing])]
+            intact = edges_intact(gray, ex, ey, self._edge_factors[missing], max_break=EDGE_SCRATCH_POINTS)
+            # ... or shows it once the thin scratches across it are painted over (wear), asked of
+            # a few cells only: a floor that is mostly occupied is not worn symbols
+            broken = np.flatnonzero(~intact)
+            if 0 < len(broken) <= SCRATCH_CELLS:
+                outlines = [cal.symbol_polygons[c] for c in missing[broken]]
+                if moved:
+                    outlines = [motion.to_frame(o) for o in outlines]
+                intact[broken] = scratches_repaired(gray, outlines, ex[broken], ey[broken],
+                                                    self._edge_factors[missing[broken]],
+                                                    max_break=EDGE_SCRATCH_POINTS)
+            whole = missing[intact]
             if len(whole):
                 found.ravel()[whole] = True
                 matched = np.concatenate([matched, self._cell_centres[whole]])
@@ -293,7 +316,9 @@ class Detector:
             return CameraMotion.none()
         binary, polygons, hit, centres, areas = frame
         shape = self.calibration.image_shape
-        coarse = register(centres, self.calibration.grid, shape, hint=hint.matrix)
+        cal = self.calibration
+        coarse = register(centres, cal.grid, shape, hint=hint.matrix, reference_thumbnail=cal.reference_thumbnail,
+                          frame=gray)
         if coarse.model == "assumed" or not len(hit):
             return coarse
         # the inliers' boxes in the frame, at most REGISTRATION_SYMBOLS of them spread over the grid
@@ -301,7 +326,11 @@ class Detector:
         good = np.isfinite(fine).all(axis=1)
         if good.sum() < MIN_SYMBOLS:
             return coarse
-        return register(fine[good], self._registration_grid, shape, hint=coarse.matrix)
+        # the coarse fit settled any whole-pitch ambiguity: the fine one starts from it
+        fine_motion = register(fine[good], self._registration_grid, shape, hint=coarse.matrix)
+        if coarse.ambiguous_pitch and not fine_motion.ambiguous_pitch:
+            fine_motion = replace(fine_motion, ambiguous_pitch=True, warning=coarse.warning)
+        return fine_motion
 
     def _inlier_boxes(self, polygons: PolygonBatch, hit: np.ndarray, centres: np.ndarray, coarse: CameraMotion,
                       bands: RowBands | None) -> np.ndarray:

@@ -16,9 +16,13 @@ The one-pitch ambiguity. Moved by a whole pitch, the grid looks the same: the pa
 unmoved. Two things keep that from giving a wrong answer. Movements of more than
 :data:`MAX_MOVEMENT_PITCH` of a pitch are refused (the pairing is no longer sure). And among the
 transforms a whole pitch apart, the one that puts the most found symbols on cells of the grid is
-taken; where another one puts as many there (a whole edge row or column hidden), the smaller
-movement is taken, since a camera on a mount moves by far less than a pitch between calibration and
-use, and the choice is reported (``ambiguous_pitch``).
+taken; where another one puts as many there (a whole edge row or column out of sight or hidden), the
+floor's own texture between the symbols decides: the calibration keeps a thumbnail of the
+reference, and the movement under which the frame's floor correlates best with it is taken (a
+movement of a pitch is then refused as too large). Where the texture cannot tell either (a floor
+without texture, an old calibration file without the thumbnail) the smaller movement is taken,
+since a camera on a mount moves by far less than a pitch between calibration and use, and the
+choice is reported (``ambiguous_pitch``).
 
 Limits (documented in docs/operator-guide.md): above :data:`WARN_SHIFT_PX`, :data:`WARN_ROTATION_DEG`
 or :data:`WARN_SCALE` the movement is compensated and a warning says so; with fewer than
@@ -44,7 +48,7 @@ from ..errors import CameraMotionError
 if TYPE_CHECKING:
     from .grid import Grid
 
-__all__ = ["CameraMotion", "register", "apply", "MIN_SYMBOLS", "MAX_RESIDUAL_PX", "MAX_MOVEMENT_PITCH",
+__all__ = ["CameraMotion", "register", "apply", "thumbnail", "grey_centres", "centre_window", "MIN_SYMBOLS", "MAX_RESIDUAL_PX", "MAX_MOVEMENT_PITCH",
            "WARN_SHIFT_PX", "WARN_ROTATION_DEG", "WARN_SCALE"]
 
 #: Fewest symbols paired with cells for a movement to be estimated (a similarity needs two; four
@@ -193,6 +197,8 @@ def _similarity_lsq(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
 def _pair(centres: np.ndarray, grid: "Grid", to_calibration: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Each centre's nearest cell (flat index, -1 when none is within PAIR_PITCH of a pitch), with
     the centres first mapped to calibration pixels by ``to_calibration``; and the distances."""
+    if not len(centres):
+        return np.zeros(0, np.int64), np.zeros(0)
     guess = apply(to_calibration, centres)
     lattice = grid.px_to_lattice(guess)
     cell = np.rint(lattice).astype(np.int64)
@@ -207,7 +213,8 @@ def _pair(centres: np.ndarray, grid: "Grid", to_calibration: np.ndarray) -> tupl
 
 
 def register(centres_px: np.ndarray, grid: "Grid", image_shape: tuple[int, int], *,
-             hint: np.ndarray | None = None, seed: int = 0) -> CameraMotion:
+             hint: np.ndarray | None = None, seed: int = 0, reference_thumbnail: np.ndarray | None = None,
+             frame: np.ndarray | None = None) -> CameraMotion:
     """Estimate the camera's movement since calibration from the symbol centres found in a frame.
 
     Parameters
@@ -222,6 +229,9 @@ def register(centres_px: np.ndarray, grid: "Grid", image_shape: tuple[int, int],
         A coarse estimate (calibration -> frame), e.g. the last frame's; default no movement.
     seed : int
         Seed of RANSAC's sampling.
+    reference_thumbnail : ndarray, optional
+        The calibration's :func:`thumbnail` of the reference; with ``frame`` (the grey frame, (H, W)
+        uint8) it decides between movements a whole pitch apart that the symbols cannot tell apart.
 
     Returns
     -------
@@ -290,7 +300,8 @@ def register(centres_px: np.ndarray, grid: "Grid", image_shape: tuple[int, int],
             rms_h = float(np.sqrt(np.mean(np.sum((apply(h, src) - dst) ** 2, axis=1))))
             if rms_h < HOMOGRAPHY_GAIN * rms:
                 matrix, rms, model = h, rms_h, "homography"
-    ambiguous = _pitch_ambiguity(flat[inliers], grid)
+    matrix, ambiguous = _resolve_pitch(matrix, _pitch_ambiguity(flat[inliers], grid), grid,
+                                       reference_thumbnail, frame)
     return _motion(matrix, rms, len(inliers), model, image_shape, grid, pitch, ambiguous)
 
 
@@ -306,23 +317,98 @@ def _few_symbols(found: np.ndarray, cells: np.ndarray, hint: np.ndarray, image_s
             warning = (f"only {len(found)} symbol{'s' if len(found) != 1 else ''} visible: the floor is mostly "
                        f"covered; the camera is assumed not to have moved since the last estimate")
             return CameraMotion(**{**motion.__dict__, "warning": warning})
+    if n_found >= MIN_SYMBOLS:
+        raise CameraMotionError(
+            f"camera moved since calibration: {n_found} symbols found but only {len(found)} near a cell of the "
+            f"grid; a movement of more than {MAX_MOVEMENT_PITCH:g} of the grid's {pitch:.0f} px pitch cannot be "
+            f"compensated; recalibrate with 'sbplan calibrate REFERENCE.png' on the empty floor")
     raise CameraMotionError(
-        f"cannot estimate the camera's movement: {n_found} symbol{'s' if n_found != 1 else ''} found, "
-        f"{len(found)} near a cell of the grid (at least {MIN_SYMBOLS} needed); the view changed, the camera "
-        f"failed or the floor is covered; recalibrate on the empty floor (sbplan calibrate)")
+        f"cannot estimate the camera's movement: {n_found} symbol{'s' if n_found != 1 else ''} found "
+        f"(at least {MIN_SYMBOLS} needed); the view changed, the camera failed or the floor is covered; "
+        f"recalibrate on the empty floor (sbplan calibrate)")
 
 
-def _pitch_ambiguity(cells: np.ndarray, grid: "Grid") -> bool:
-    """Would the pairing a whole pitch away (in any of the 8 directions) put as many of the inlier
-    symbols on the grid? Then the symbols alone cannot tell the two movements apart."""
+def _pitch_ambiguity(cells: np.ndarray, grid: "Grid") -> list[tuple[int, int]]:
+    """The pairings a whole pitch away, ``(d_row, d_col)``, that would put as many of the inlier
+    symbols on the grid: the symbols alone cannot tell those movements from the one found."""
     row, col = np.divmod(cells, grid.cols)
     n = len(cells)
-    for dr in (-1, 0, 1):
-        for dc in (-1, 0, 1):
+    return [(dr, dc) for dr in (-1, 0, 1) for dc in (-1, 0, 1)
             if (dr or dc) and int(((row + dr >= 0) & (row + dr < grid.rows) & (col + dc >= 0)
-                                   & (col + dc < grid.cols)).sum()) >= n:
-                return True
-    return False
+                                   & (col + dc < grid.cols)).sum()) >= n]
+
+
+#: The reference thumbnail is the reference image made this many times smaller.
+THUMBNAIL_FACTOR = 8
+#: The floor's texture decides between movements a pitch apart when the best one's correlation
+#: beats the next one's by this much; below it the smaller movement is kept, with a warning.
+THUMBNAIL_MARGIN = 0.1
+
+
+def thumbnail(gray: np.ndarray) -> np.ndarray:
+    """The grey image made :data:`THUMBNAIL_FACTOR` times smaller (area average): what calibration
+    keeps of the reference to tell movements a pitch apart by the floor's own texture."""
+    h, w = gray.shape
+    f = THUMBNAIL_FACTOR
+    return cv2.resize(gray, (max(1, w // f), max(1, h // f)), interpolation=cv2.INTER_AREA)
+
+
+def _texture(img: np.ndarray) -> np.ndarray:
+    """The floor's texture: the image less its local mean (light changes slowly, texture does not)."""
+    img = img.astype(np.float32)
+    return img - cv2.blur(img, (9, 9), borderType=cv2.BORDER_REFLECT)
+
+
+def _view_scores(reference_thumb: np.ndarray, frame: np.ndarray, matrices: list[np.ndarray]) -> list[float]:
+    """How well the frame's floor texture matches the reference's moved by each matrix (normalized
+    correlation over the floor between symbols, on thumbnails)."""
+    f = THUMBNAIL_FACTOR
+    th, tw = reference_thumb.shape
+    small = cv2.resize(frame, (tw, th), interpolation=cv2.INTER_AREA)
+    tex = _texture(small)
+    # the floor between the symbols: the printed grid looks the same a pitch away, its floor does not
+    ref = reference_thumb.astype(np.float32)
+    floor = (ref > np.percentile(ref, 40)).astype(np.uint8)
+    s = np.diag([1.0 / f, 1.0 / f, 1.0])
+    scores = []
+    for m in matrices:
+        mt = s @ m @ np.linalg.inv(s)
+        warped = cv2.warpPerspective(_texture(reference_thumb), mt, (tw, th), flags=cv2.INTER_LINEAR,
+                                     borderMode=cv2.BORDER_CONSTANT, borderValue=np.nan)
+        mask = cv2.warpPerspective(floor, mt, (tw, th), flags=cv2.INTER_NEAREST) > 0
+        mask &= np.isfinite(warped)
+        if mask.sum() < 50:
+            scores.append(-1.0)
+            continue
+        a, b = tex[mask], warped[mask]
+        a, b = a - a.mean(), b - b.mean()
+        scores.append(float(np.dot(a, b) / max(np.sqrt(np.dot(a, a) * np.dot(b, b)), 1e-6)))
+    return scores
+
+
+def _resolve_pitch(matrix: np.ndarray, ambiguous: list[tuple[int, int]], grid: "Grid",
+                   reference_thumb: np.ndarray | None, frame: np.ndarray | None) -> tuple[np.ndarray, bool]:
+    """Choose between ``matrix`` and the movements a whole pitch away that the symbols cannot tell
+    apart, by the floor's texture (needs the calibration's reference thumbnail and the frame).
+    Returns the chosen matrix and whether the choice stays ambiguous."""
+    if not ambiguous or reference_thumb is None or frame is None:
+        return matrix, bool(ambiguous)
+    # a whole pitch of the lattice, as calibration pixels
+    c = grid.centres_px
+    step_col = np.median(np.diff(c, axis=1).reshape(-1, 2), axis=0) if grid.cols > 1 else np.zeros(2)
+    step_row = np.median(np.diff(c, axis=0).reshape(-1, 2), axis=0) if grid.rows > 1 else np.zeros(2)
+    candidates = [matrix]
+    for dr, dc in ambiguous:
+        t = np.eye(3)
+        # pairing each symbol with the cell (dr, dc) away moves the calibration's view back by that
+        t[:2, 2] = -(dr * step_row + dc * step_col)
+        candidates.append(matrix @ t)
+    scores = _view_scores(reference_thumb, frame, candidates)
+    order = np.argsort(scores)[::-1]
+    best, second = int(order[0]), int(order[1])
+    if scores[best] - scores[second] < THUMBNAIL_MARGIN:
+        return matrix, True
+    return candidates[best], False
 
 
 def _motion(matrix: np.ndarray, rms: float, used: int, model: str, image_shape, grid: "Grid | None", pitch: float,
@@ -359,8 +445,8 @@ def _motion(matrix: np.ndarray, rms: float, used: int, model: str, image_shape, 
                    f"{rotation:+.2f} deg, scale {scale:.4f}); detection compensated it; re-anchor the calibration "
                    f"with 'sbplan calibrate --update CALIBRATION.json FRAME.png'")
     if ambiguous:
-        note = ("a whole edge row or column of symbols is hidden: a movement of a whole pitch would fit the "
-                "symbols as well; the smaller movement was taken")
+        note = ("a whole edge row or column of symbols is hidden and the floor's texture cannot tell: a "
+                "movement of a whole pitch would fit the symbols as well; the smaller movement was taken")
         warning = note if warning is None else f"{warning}; {note}"
     return CameraMotion(matrix, shift, rotation, scale, rms, used, movement, model, warning, ambiguous)
 

@@ -23,7 +23,7 @@ from ...workspace import Workspace, load_workspace
 from ..grid import Grid, fit_grid
 from ..outline_checks import (edge_contrast, edge_probes, inner_deviations, inner_tolerance, outline_deviation,
                               reference_samples, signed_distance_map)
-from ..registration import centre_window, grey_centres
+from ..registration import centre_window, grey_centres, thumbnail
 from .file import Calibration
 from .shapes import Shapes, extract_shapes
 from .threshold import match_threshold
@@ -164,6 +164,7 @@ def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str 
         inner_tolerance_px=inner_tol,
         edge_contrast=edge_contrast(gray, *edge_probes(symbol_polygons)),
         registration_centres_px=_registration_centres(gray, symbol_polygons, grid),
+        reference_thumbnail=thumbnail(gray),
         workspace=workspace,
         stats=stats,
     )

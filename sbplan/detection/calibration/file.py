@@ -3,12 +3,15 @@
 
 from __future__ import annotations
 
+import base64
+import binascii
 import json
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
 
 from ... import registry
@@ -83,6 +86,7 @@ class Calibration:
     inner_tolerance_px: np.ndarray | None = None
     edge_contrast: np.ndarray | None = None
     registration_centres_px: np.ndarray | None = None
+    reference_thumbnail: np.ndarray | None = None
     workspace: Workspace = field(default_factory=Workspace)
     stats: dict[str, Any] = field(default_factory=dict)
 
@@ -155,6 +159,8 @@ class Calibration:
                    {"edge_contrast": np.round(self.edge_contrast, 3).tolist()}),
                 **({} if self.registration_centres_px is None else
                    {"registration_centres_px": np.round(self.registration_centres_px, 4).tolist()}),
+                **({} if self.reference_thumbnail is None else
+                   {"reference_thumbnail_png": _png_base64(self.reference_thumbnail)}),
                 "polygons": [np.round(p, 3).tolist() for p in self.symbol_polygons],
             },
             "other_polygons": [np.round(p, 3).tolist() for p in self.other_polygons],
@@ -192,6 +198,8 @@ class Calibration:
                                if "edge_contrast" in sym else None),
                 registration_centres_px=(np.asarray(sym["registration_centres_px"], np.float64)
                                          if "registration_centres_px" in sym else None),
+                reference_thumbnail=(_png_from_base64(sym["reference_thumbnail_png"], source)
+                                     if "reference_thumbnail_png" in sym else None),
                 workspace=Workspace.from_json(data["workspace"]),
                 stats=dict(data.get("stats", {})),
             )
@@ -203,6 +211,21 @@ class Calibration:
     def save(self, path: str | os.PathLike) -> Path:
         """Write the calibration as JSON, atomically (a failed write never destroys a good file)."""
         return write_json(path, self.to_json())
+
+
+def _png_base64(image: np.ndarray) -> str:
+    ok, buf = cv2.imencode(".png", image)
+    return base64.b64encode(buf.tobytes()).decode("ascii")
+
+
+def _png_from_base64(text: Any, source: str) -> np.ndarray:
+    try:
+        img = cv2.imdecode(np.frombuffer(base64.b64decode(text, validate=True), np.uint8), cv2.IMREAD_GRAYSCALE)
+    except (TypeError, ValueError, binascii.Error):
+        img = None
+    if img is None:
+        raise CalibrationError(f"{source}: symbol.reference_thumbnail_png is not a base64 PNG image")
+    return img
 
 
 def load_calibration(path: str | os.PathLike) -> Calibration:
