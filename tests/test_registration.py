@@ -1,4 +1,4 @@
-"""Per-frame registration (sbplan.registration) with the real renderer: a camera that moved after
+"""Per-frame registration (sbplan.detection.registration) with the real renderer: a camera that moved after
 calibration gives the same cells, the movement is reported, and beyond the limits detection
 refuses with CameraMotionError instead of answering."""
 
@@ -12,11 +12,11 @@ import cv2
 import numpy as np
 import pytest
 
-from sbplan.calibration import Calibration, calibrate, load_calibration, update_calibration
+from sbplan.detection.calibration import Calibration, calibrate, load_calibration, update_calibration
 from sbplan.detection import Detector
 from sbplan.errors import CameraMotionError
-from sbplan.evaluation import score_cells
-from sbplan.registration import CameraMotion, MAX_MOVEMENT_PITCH, apply, register
+from sbplan.bench.evaluation import score_cells
+from sbplan.detection.registration import CameraMotion, MAX_MOVEMENT_PITCH, apply, register
 from sbplan.synth import FloorSpec, SceneSpec, render_reference, render_scene
 from sbplan.synth.camera import motion_matrix
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import ClassVar
 
-from sbplan.stages import Planner
+from sbplan.contracts import Planner
 
 
 @dataclass(kw_only=True, frozen=True)

@@ -6,8 +6,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import ClassVar
 
+from sbplan.contracts import Planner, option
 from sbplan.errors import InputError
-from sbplan.stages import Planner, option
 
 
 @dataclass(kw_only=True, frozen=True)

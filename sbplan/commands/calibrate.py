@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ._stages import add_stage_arguments, stage_choices
+from ._stage_options import add_stage_arguments, stage_choices
 
 HELP = "calibrate on a reference image of the empty floor and write a calibration file"
 
@@ -27,7 +27,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..calibration import calibrate, load_calibration, update_calibration
+    from ..detection.calibration import calibrate, load_calibration, update_calibration
     from ..errors import InputError
 
     if args.update is not None:

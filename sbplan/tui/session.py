@@ -30,9 +30,9 @@ def display_path(path: str | os.PathLike | None) -> str:
 
 def stage_names() -> dict[str, list[str]]:
     """The installed stage names of every selectable kind, from the plugin registry."""
-    from .. import plugins
+    from .. import registry
 
-    return {kind: getattr(plugins, f"{kind}_names")() for kind in STAGE_KINDS}
+    return {kind: getattr(registry, f"{kind}_names")() for kind in STAGE_KINDS}
 
 
 def square(centre: Any, side: float) -> np.ndarray:
@@ -151,7 +151,7 @@ class Session:
 
     def calibrate(self, stages: dict[str, str]) -> Any:
         """Calibrate on the loaded reference with the chosen stages (kind -> name)."""
-        from ..calibration import calibrate
+        from ..detection.calibration import calibrate
         from ..errors import InputError
 
         if self.reference is None:
@@ -164,7 +164,7 @@ class Session:
         return cal
 
     def load_calibration(self, path: str | os.PathLike) -> Any:
-        from ..calibration import load_calibration
+        from ..detection.calibration import load_calibration
 
         self.calibration = load_calibration(path)
         return self.calibration

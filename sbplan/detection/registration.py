@@ -43,7 +43,7 @@ from typing import TYPE_CHECKING, Any
 import cv2
 import numpy as np
 
-from .errors import CameraMotionError
+from ..errors import CameraMotionError
 
 if TYPE_CHECKING:
     from .grid import Grid

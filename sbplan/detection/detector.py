@@ -8,26 +8,25 @@ once (stages, reference descriptors, thresholds), so a stream of frames pays onl
 from __future__ import annotations
 
 import collections.abc
-import dataclasses
 import os
 import time
-from dataclasses import dataclass, field
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
+from ..errors import CameraMotionError, DetectionError
+from ..imageio import as_gray, load_image
+from ..polygons import PolygonBatch, centroids, resample_complex, signed_areas
 from .bands import RowBands
-from .calibration import Calibration, confuser_distances, derive_threshold, length_filter_steps, load_calibration
-from .errors import CameraMotionError, DetectionError
-from .geometry import PolygonBatch, centroids, resample_complex, signed_areas
-from .imageio import as_gray, load_image
-from .obstacles import Obstacle, find_obstacles
+from .calibration.file import Calibration, load_calibration
+from .calibration.shapes import length_filter_steps
+from .obstacles import find_obstacles
+from .outline_checks import (EDGE_SAMPLES, EDGE_SCRATCH_POINTS, INNER_MARGIN_PX, SAMPLES, edge_factors, edge_kept,
+                             edge_probes, hidden_piece, intact_edges, reference_samples, samples_deviation,
+                             scratches_repaired, signed_distance_map)
 from .registration import INLIER_PX, MIN_SYMBOLS, CameraMotion, apply, centre_window, grey_centres, register
-from .outline_check import (EDGE_SAMPLES, EDGE_SCRATCH_POINTS, INNER_MARGIN_PX, SAMPLES, edge_factors, edge_kept,
-                            edge_probes, hidden_piece, intact_edges, reference_samples, samples_deviation,
-                            scratches_repaired, signed_distance_map)
-
-FORMAT = "sbplan.detection/1"
+from .result import CellDetection, Detection
 
 #: Row bands reach this many symbol sizes (and at least BAND_MARGIN_PX) above and below the
 #: reference symbols: room for defocus and small camera shake.
@@ -48,109 +47,17 @@ SCRATCH_BROKEN_SHARE = 0.3
 REGISTRATION_SYMBOLS = 24
 
 
-@dataclass(frozen=True, eq=False)
-class Detection:
-    """The result of one detection: :class:`CellDetection`'s ``occupied``, ``symbols_found``,
-    ``matched_centres_px`` and ``candidates_px``, and what is built on them.
-
-    Attributes
-    ----------
-    occupancy : ndarray of shape (H, W), uint8
-        The occupancy image (0 occupied, 255 free), paper figure 14.
-    obstacles : list of Obstacle
-    timings_ms : dict
-        Milliseconds per stage, in pipeline order (``map`` and ``obstacles`` after
-        :class:`CellDetection`'s), and "total".
-    stages : dict
-        kind -> stage name used.
-    """
-
-    calibration: Calibration
-    occupied: np.ndarray
-    symbols_found: int
-    matched_centres_px: np.ndarray
-    occupancy: np.ndarray
-    obstacles: list[Obstacle]
-    timings_ms: dict[str, float]
-    stages: dict[str, str]
-    candidates_px: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
-    camera: CameraMotion = field(default_factory=CameraMotion.none)
-
-    @property
-    def occupied_cells(self) -> list[tuple[int, int]]:
-        return [(int(r), int(c)) for r, c in zip(*np.nonzero(self.occupied))]
-
-    @property
-    def symbols_expected(self) -> int:
-        return self.calibration.symbols_expected
-
-    def to_json(self) -> dict:
-        cal = self.calibration
-        return {
-            "format": FORMAT,
-            "image": {"width": cal.image_shape[1], "height": cal.image_shape[0]},
-            "grid": {"rows": cal.grid.rows, "cols": cal.grid.cols},
-            "symbols_expected": self.symbols_expected,
-            "symbols_found": self.symbols_found,
-            "occupied_cells": [list(c) for c in self.occupied_cells],
-            "free_cells": int((~self.occupied).sum()),
-            "obstacles": [o.to_json() for o in self.obstacles],
-            "workspace": {
-                "bounds_m": [round(v, 6) for v in cal.world_bounds()],
-                "pitch_m": list(cal.workspace.pitch_m),
-                "origin_m": list(cal.workspace.origin),
-                "robot_radius_m": cal.workspace.robot_radius_m,
-                "frame": "metres; x right along the columns, y up toward row 0",
-            },
-            "camera": self.camera.to_json(),
-            "stages": dict(self.stages),
-            "timings_ms": {k: round(v, 4) for k, v in self.timings_ms.items()},
-        }
-
-
-@dataclass(frozen=True, eq=False)
-class CellDetection:
-    """What :meth:`Detector.find_cells` gives: the cells, without occupancy image or obstacles.
-
-    Attributes
-    ----------
-    occupied : ndarray of shape (rows, cols), bool
-        True where the cell's symbol is missing; ``[row, col]``, row 0 at the top.
-    symbols_found : int
-    matched_centres_px : ndarray of shape (n, 2)
-        Centres ``(x, y)`` of the symbols found in their cells (the reference symbol's centre for a
-        cell the outline checks failed but whose symbol's edge shows all around in the grey image).
-    candidates_px : ndarray of shape (m, 2)
-        Centres of outlines that matched the symbol's shape but were rejected (off the grid, or
-        grown, shrunk or bent against their cell's reference outline).
-    timings_ms : dict
-        Milliseconds per stage up to "match", and "total".
-    image_shape : (H, W)
-    camera : CameraMotion
-        The camera's movement since calibration, as this frame showed it
-        (:mod:`sbplan.registration`). Every pixel coordinate of the result is the calibration's.
-    """
-
-    occupied: np.ndarray
-    symbols_found: int
-    matched_centres_px: np.ndarray
-    candidates_px: np.ndarray
-    timings_ms: dict[str, float]
-    image_shape: tuple[int, int]
-    camera: CameraMotion = field(default_factory=CameraMotion.none)
-
-
 class Detector:
     """Detection with one calibration and one choice of stages, reusable across frames.
 
-    Stage arguments are names or instances; None means the calibrated stage. When the matcher or
-    approximator differs from the calibrated one, the reference descriptor and the threshold are
-    derived again from the reference symbols stored in the calibration.
+    Stage arguments are names or instances; None means the calibrated stage. A matcher other than
+    the calibrated one (by name or options) takes its reference descriptor and threshold from
+    :meth:`Calibration.matching_for`.
 
     With ``row_bands`` (the default) the per-pixel work is limited to the rows around the
-    reference's symbols when they are at most 80 % of the frame (:mod:`sbplan.bands`); the cells
-    found are the same as on whole frames, at about half the cost. ``row_bands=False`` processes
-    whole frames.
+    reference's symbols when they are at most 80 % of the frame (:mod:`sbplan.detection.bands`);
+    the cells found are the same as on whole frames, at about half the cost. ``row_bands=False``
+    processes whole frames.
     """
 
     def __init__(self, calibration: Calibration, *, binarizer: Any = None, extractor: Any = None,
@@ -161,27 +68,12 @@ class Detector:
         self.extractor = cal.stage("extractor", extractor)
         if "chains" in self.extractor.config() and self.extractor.config()["chains"]:
             # Freeman chains are for the paper's KKA; skip them on the hot path when nobody needs them.
-            from dataclasses import replace
             if (approximator or cal.stages["approximator"]["name"]) != "kka":
                 self.extractor = replace(self.extractor, chains=False)
         self.approximator = cal.stage("approximator", approximator)
         self.matcher = cal.stage("matcher", matcher)
         self.mapper = cal.stage("mapper", mapper)
-        same_shapes = (self.matcher.config() == cal.stage("matcher").config() and self.matcher.name == cal.stages["matcher"]["name"])
-        if same_shapes:
-            self.descriptor, self.threshold = cal.descriptor, cal.threshold
-        else:
-            sym = self.matcher.describe_many(cal.symbol_polygons)
-            self.descriptor = np.median(sym, axis=0)
-            # the symbols as later images show them: the reference's and its degraded copies'
-            seen = self.matcher.describe_many(cal.symbol_polygons + cal.degraded_polygons)
-            d_sym = self.matcher.distance_matrix(seen, self.descriptor[None, :])[:, 0]
-            area = float(np.median(np.abs(signed_areas(cal.symbol_polygons))))
-            d_other = confuser_distances(self.matcher, self.descriptor, area)
-            if cal.other_polygons:
-                other = self.matcher.describe_many(cal.other_polygons)
-                d_other = np.concatenate([d_other, self.matcher.distance_matrix(other, self.descriptor[None, :])[:, 0]])
-            self.threshold, _ = derive_threshold(d_sym, d_other)
+        self.descriptor, self.threshold = cal.matching_for(self.matcher)
         areas = np.abs(signed_areas(cal.symbol_polygons))
         self.cell_area = areas.reshape(cal.grid.rows, cal.grid.cols)
         # what find_cells reads per frame, made once: cell areas by flat cell number, the ratio bound
@@ -195,7 +87,7 @@ class Detector:
         self.allowance = np.broadcast_to(tol, self.ref_points.shape[:2]) + INNER_MARGIN_PX
         # Symbols only appear in the rows where the reference showed them, moved as the camera
         # moved; when those rows are a clear part of the frame, the per-pixel work is limited to
-        # them (sbplan.bands), laid out for the camera's last known pose (self._bands_for).
+        # them (sbplan.detection.bands), laid out for the camera's last known pose (self._bands_for).
         self._row_bands = bool(row_bands and cal.symbol_polygons)
         self._band_margin = max(BAND_MARGIN_PX, BAND_MARGIN * float(np.sqrt(np.median(areas)))) if len(areas) else 0.0
         # each symbol's bounding box corners, whose rows the bands must hold (cell, 4 corners, xy)
@@ -205,19 +97,19 @@ class Detector:
         self._bands_cache: tuple[np.ndarray, RowBands | None] | None = None
         self.bands: RowBands | None = self._bands_for(np.eye(3))
         # registration: the camera's movement since calibration, estimated on every frame
-        # (sbplan.registration); the last estimate seeds the next frame's
+        # (sbplan.detection.registration); the last estimate seeds the next frame's
         self.register = bool(register)
         self.motion: CameraMotion = CameraMotion.none()
         self._registration_centres = (cal.registration_centres_px if cal.registration_centres_px is not None
                                       else cal.grid.centres_px)
-        self._registration_grid = dataclasses.replace(cal.grid, centres_px=self._registration_centres)
+        self._registration_grid = replace(cal.grid, centres_px=self._registration_centres)
         self._centre_window = centre_window(cal.symbol_polygons) if cal.symbol_polygons else 0
         # the length filter's bounds, checked once (length_filter raises on bad ones)
         length_filter_steps([], cal.symbol_points_range)
         self._points_range = (float(cal.symbol_points_range[0]), float(cal.symbol_points_range[1]))
         self._inward_planes = np.ascontiguousarray(self.inward.transpose(0, 2, 1))
         # A cell the outline checks call occupied is free after all when the grey image still shows
-        # its symbol's edge all around (sbplan.outline_check.edges_intact): where each reference
+        # its symbol's edge all around (sbplan.detection.outline_checks.edges_intact): where each reference
         # outline is read, and the step the reference showed there. Old calibrations have none.
         n_cells = len(cal.symbol_polygons)
         self._edge_x = self._edge_y = self._edge_factors = None
@@ -259,7 +151,7 @@ class Detector:
         """Image in -> occupied cells out: the pipeline up to the mapper, for callers that need
         only the cells (and what :meth:`__call__` builds on).
 
-        The frame is first registered to the calibration (:mod:`sbplan.registration`): the
+        The frame is first registered to the calibration (:mod:`sbplan.detection.registration`): the
         camera's movement is estimated from the symbols the matcher found, and every check after
         that reads the frame where the movement puts each cell. Pixel coordinates in the result
         are the calibration's.
@@ -442,7 +334,7 @@ class Detector:
         # the coarse fit settled any whole-pitch ambiguity: the fine one starts from it
         fine_motion = register(fine[good], self._registration_grid, shape, hint=coarse.matrix)
         if coarse.ambiguous_pitch and not fine_motion.ambiguous_pitch:
-            fine_motion = dataclasses.replace(fine_motion, ambiguous_pitch=True, warning=coarse.warning)
+            fine_motion = replace(fine_motion, ambiguous_pitch=True, warning=coarse.warning)
         return fine_motion
 
     def _inlier_boxes(self, polygons: PolygonBatch, hit: np.ndarray, centres: np.ndarray, coarse: CameraMotion,
@@ -487,7 +379,7 @@ class Detector:
 
 class _Picked(collections.abc.Sequence):
     """The outlines ``batch[i]`` for ``i`` in ``indices``, looked up only when asked for:
-    :func:`~sbplan.outline_check.hidden_piece` reads a handful of them per frame, if any."""
+    :func:`~sbplan.detection.outline_checks.hidden_piece` reads a handful of them per frame, if any."""
 
     __slots__ = ("batch", "indices")
 

@@ -14,8 +14,8 @@ import bisect
 import cv2
 import numpy as np
 
-from .errors import InputError
-from .geometry import resample_xy
+from ..errors import InputError
+from ..polygons import resample_xy
 
 #: Points per outline at which the deviation is measured.
 SAMPLES = 64

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from .errors import CalibrationError
+from ..errors import CalibrationError
 
 
 @dataclass(frozen=True, eq=False)

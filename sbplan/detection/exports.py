@@ -12,9 +12,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from .detection import Detection
-from .geometry import signed_area
-from .imageio import write_atomic, write_image
+from ..imageio import write_atomic, write_image
+from ..polygons import signed_area
+from .result import Detection
 
 _RED, _GREEN, _YELLOW, _CYAN, _WHITE, _BLACK = (40, 40, 230), (60, 200, 60), (0, 220, 255), (230, 200, 0), (255, 255, 255), (0, 0, 0)
 
@@ -25,7 +25,7 @@ def overlay_image(image: np.ndarray, detection: Detection) -> np.ndarray:
 
     The detection's pixel coordinates are the calibration's; they are drawn where the camera's
     movement (``detection.camera``) puts them in this frame."""
-    from .imageio import as_gray
+    from ..imageio import as_gray
 
     gray = as_gray(image)
     out = cv2.cvtColor(gray, cv2.COLOR_GRAY2BGR)
