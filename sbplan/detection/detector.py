@@ -22,7 +22,7 @@ from .bands import RowBands
 from .calibration.file import Calibration, load_calibration
 from .calibration.shapes import length_filter_steps
 from .obstacles import find_obstacles
-from .outline_checks import (EDGE_SAMPLES, EDGE_SCRATCH_POINTS, INNER_MARGIN_PX, SAMPLES, edge_factors, edge_kept,
+from .outline_checks import (EDGE_SAMPLES, EDGE_SCRATCH_POINTS, EDGE_UNPROBED, INNER_MARGIN_PX, SAMPLES, edge_factors, edge_kept,
                              edge_probes, hidden_piece, intact_edges, reference_samples, samples_deviation,
                              scratches_repaired, signed_distance_map)
 from .registration import MIN_SYMBOLS, CameraMotion, apply, centre_window, grey_centres, refine, register_pairs
@@ -43,7 +43,7 @@ SCRATCH_CELLS = 24
 #: Cells whose edge is broken at more than this share of its points are not looked at for scratches
 #: (on the suite's worn floors scratched symbols broke at most 11 % of their points; 90 % of the
 #: occupied cells whose edge broke, more than 15 %).
-SCRATCH_BROKEN_SHARE = 0.15
+SCRATCH_BROKEN_SHARE = 0.25
 #: Symbols whose grey-level centres refine the registration (spread over the grid): 24 pin it to
 #: about 0.05 px on the renderer's scenes at half the cost of all 50.
 REGISTRATION_SYMBOLS = 24
@@ -264,8 +264,9 @@ class Detector:
             if moved:
                 q = motion.to_frame(np.stack([ex, ey], axis=-1))
                 ex, ey = q[..., 0].astype(np.float32), q[..., 1].astype(np.float32)
-            kept = edge_kept(gray, ex, ey, self._edge_factors[missing])
-            intact = intact_edges(kept, max_break=EDGE_SCRATCH_POINTS)
+            factors = self._edge_factors[missing]
+            kept = edge_kept(gray, ex, ey, factors)
+            intact = intact_edges(kept, max_break=EDGE_SCRATCH_POINTS, probed=factors < EDGE_UNPROBED)
             # ... or shows it once the thin scratches across it are painted over (wear), asked of
             # a few cells only: an obstacle over a symbol breaks much of its edge, scratches a few
             # points, and a floor that is mostly occupied is not worn symbols
