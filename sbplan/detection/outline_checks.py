@@ -268,8 +268,10 @@ EDGE_MIN_REFERENCE = 0.25
 #: <= 0.17); 0.5 would leave one free symbol of seed 11 called occupied.
 EDGE_KEEP = 0.4
 
-#: Broken runs of the edge at most this many kept points apart count as one break.
+#: Broken runs of the edge at most this many kept points apart count as one break, and an outline
+#: with more than EDGE_MAX_BREAKS breaks is not forgiven.
 EDGE_BREAK_GAP = 3
+EDGE_MAX_BREAKS = 4
 
 #: The factor of a point not probed (any inside level passes where the outside is not black).
 EDGE_UNPROBED = 256
@@ -358,7 +360,11 @@ def intact_edges(kept: np.ndarray, *, max_break: int = 0, probed: np.ndarray | N
     """
     intact = kept.all(axis=1)
     if max_break > 0 and not intact.all():
-        for i in np.flatnonzero(~intact):
+        # at most EDGE_MAX_BREAKS short breaks (two scratches cross an outline four times): an
+        # outline with more broken points than they can hold is not looked at point by point
+        counted = ~kept if probed is None else ~kept & probed
+        few = ~intact & (counted.sum(axis=1) <= max_break * EDGE_MAX_BREAKS)
+        for i in np.flatnonzero(few):
             broken = ~kept[i] if probed is None else ~kept[i][probed[i]]
             if broken.all():
                 continue
@@ -371,7 +377,7 @@ def intact_edges(kept: np.ndarray, *, max_break: int = 0, probed: np.ndarray | N
             # keeps the step here and there; a scratch crosses cleanly)
             apart = begins[1:] - ends[:-1] > EDGE_BREAK_GAP
             spans = ends[np.r_[np.flatnonzero(apart), len(ends) - 1]] - begins[np.r_[0, np.flatnonzero(apart) + 1]]
-            intact[i] = spans.max() <= max_break
+            intact[i] = len(spans) <= EDGE_MAX_BREAKS and spans.max() <= max_break
     return intact
 
 
@@ -468,8 +474,10 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
 #: A scratched symbol has at most this many thin bright lines over it, covering at most this
 #: share of its area, each with ink on both sides: a striped or labelled obstacle over the symbol
 #: has many lines, or lines with its own surface around them.
-SCRATCH_MAX_LINES = 2
-SCRATCH_MAX_AREA = 0.10
+SCRATCH_MAX_LINES = 3
+SCRATCH_MAX_AREA = 0.16
+#: ... the longest of them at least this part of the symbol's size across.
+SCRATCH_MIN_LENGTH = 0.6
 #: ... where "ink" is at most this part of the symbol's step above the ink's level (and nine in
 #: ten of the pixels beside the lines at most twice that), and the lines lie within this part of
 #: the step of the floor's level.
@@ -480,21 +488,31 @@ SCRATCH_FLOOR_LEVEL = 0.35
 def _scratch_like(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, levels: np.ndarray, step: float) -> bool:
     """Are the thin bright lines over a symbol scratches in its ink, not an obstacle's texture?
 
-    ``thin`` and ``inside`` (the reference outline's interior) are 0/1 masks over ``patch``;
-    ``levels`` the edge probes' grey levels (2, S), inside first; ``step`` the median ink-to-floor step.
+    A scratch is a long, floor-coloured line with ink on both sides; a striped or labelled
+    obstacle over the symbol makes many lines, short ones, or lines with its own surface around
+    them. ``thin`` and ``inside`` (the reference outline's interior) are 0/1 masks over
+    ``patch``; ``levels`` the edge probes' grey levels (2, S), inside first; ``step`` the median
+    ink-to-floor step.
     """
     over = (thin > 0) & (inside > 0)
-    if over.sum() > SCRATCH_MAX_AREA * max(int(inside.sum()), 1):
+    area = max(int(inside.sum()), 1)
+    if over.sum() > SCRATCH_MAX_AREA * area:
         return False
-    n, labels = cv2.connectedComponents(over.astype(np.uint8), connectivity=8)
-    if n - 1 > SCRATCH_MAX_LINES:
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(over.astype(np.uint8), connectivity=8)
+    if not 1 <= n - 1 <= SCRATCH_MAX_LINES:
         return False
-    # the lines are floor-coloured, and the pixels beside them, inside the symbol, ink
+    # the longest line runs across a good part of the symbol
+    extent = np.hypot(stats[1:, cv2.CC_STAT_WIDTH], stats[1:, cv2.CC_STAT_HEIGHT]).max()
+    if extent < SCRATCH_MIN_LENGTH * np.sqrt(area):
+        return False
+    # the lines are floor-coloured, and the pixels beside them, inside the symbol (away from its
+    # blurred edge), ink
     floor, ink = float(np.percentile(levels[1], 50)), float(np.percentile(levels[0], 25))
     if float(np.median(patch[over])) < floor - SCRATCH_FLOOR_LEVEL * step:
         return False
     near = cv2.dilate(thin, np.ones((7, 7), np.uint8)) > 0
-    beside = near & ~(cv2.dilate(thin, np.ones((3, 3), np.uint8)) > 0) & (inside > 0)
+    core = cv2.erode(inside, np.ones((5, 5), np.uint8)) > 0
+    beside = near & ~(cv2.dilate(thin, np.ones((3, 3), np.uint8)) > 0) & core
     if not beside.any():
         return False
     around = patch[beside].astype(np.float32)
