@@ -11,7 +11,7 @@ from typing import ClassVar, Sequence
 
 import numpy as np
 
-from sbplan.errors import ContourError, InputError
+from sbplan.errors import ContourError, InputError, PluginError
 from sbplan.geometry import resample_complex, signed_areas
 from sbplan.model import as_points
 from sbplan.stages import DescriptorMatcher, option
@@ -216,7 +216,11 @@ class HeightFunctionsMatcher(DescriptorMatcher):
         return out
 
     def _aligned(self, stack: np.ndarray, first: np.ndarray, second: np.ndarray) -> np.ndarray:
-        from . import _kernels
+        try:
+            from . import _kernels
+        except ImportError as exc:  # installed without its dependencies
+            raise PluginError(f"matcher {self.name!r} needs numba to compare outlines ({exc}); "
+                              "pip install numba") from None
 
         n_seg = self.points // self.segment
         desc = stack[:, :-1].reshape(len(stack), self.points, n_seg)

@@ -156,6 +156,23 @@ def test_bad_options_and_outlines():
         m.distance_matrix(np.full((1, m.size), np.nan), np.zeros((1, m.size)))
 
 
+def test_without_numba_a_readable_error(monkeypatch):
+    import sys
+
+    from sbplan.errors import PluginError
+
+    m = HeightFunctionsMatcher()
+    d = m.describe_many(list(sample_outlines().values())[:2])
+    import sbplan_height_functions
+
+    monkeypatch.delitem(sys.modules, "sbplan_height_functions._kernels", raising=False)
+    monkeypatch.delattr(sbplan_height_functions, "_kernels", raising=False)
+    monkeypatch.setitem(sys.modules, "numba", None)  # what an installation without numba imports
+    with pytest.raises(PluginError, match="needs numba"):
+        m.distance_matrix(d, d)
+    assert m.describe(sample_outlines()["flag"]).shape == (m.size,)  # describing needs no numba
+
+
 # -- in the detection pipeline -----------------------------------------------------------------
 
 def test_detection_with_this_matcher(calibrated_pipeline):
