@@ -12,7 +12,7 @@ from typing import Iterable
 
 import numpy as np
 
-from .errors import ContourError
+from .errors import ContourError, InputError
 
 #: Freeman directions 0..7 as ``(dx, dy)`` in image coordinates: 0 = east, counting
 #: counter-clockwise as displayed, so 2 = up (dy = -1) and 6 = down.
@@ -97,4 +97,28 @@ def as_points(points, *, name: str = "points", min_points: int = 3) -> np.ndarra
         raise ContourError(f"{name}: a closed contour needs at least {min_points} points, got {len(arr)}")
     if not np.isfinite(arr).all():
         raise ContourError(f"{name}: contains NaN or infinite coordinates")
+    return arr
+
+
+def as_descriptors(descriptors, *, name: str = "descriptors") -> np.ndarray:
+    """Validate matcher descriptors and return them as a float64 ``(n, K)`` array.
+
+    What every ``DescriptorMatcher.distance_matrix`` checks first; a single ``(K,)`` descriptor
+    becomes one row.
+
+    Raises
+    ------
+    InputError
+        If they are not a 1-D or 2-D array of finite numbers.
+    """
+    try:
+        arr = np.asarray(descriptors, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{name}: not an array of numbers ({exc})") from None
+    if arr.ndim == 1:
+        arr = arr[None, :]
+    if arr.ndim != 2:
+        raise InputError(f"{name}: expected descriptors of shape (n, K), got {arr.shape}")
+    if not np.isfinite(arr).all():
+        raise InputError(f"{name}: descriptors contain NaN or infinite values")
     return arr

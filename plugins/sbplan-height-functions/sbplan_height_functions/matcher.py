@@ -13,7 +13,7 @@ import numpy as np
 
 from sbplan.errors import ContourError, InputError, PluginError
 from sbplan.geometry import resample_complex, signed_areas
-from sbplan.model import as_points
+from sbplan.model import as_descriptors, as_points
 from sbplan.stages import DescriptorMatcher, option
 
 __all__ = ["HeightFunctionsMatcher", "height_descriptors", "mirror_descriptors", "segment_weights", "shape_complexity"]
@@ -189,7 +189,7 @@ class HeightFunctionsMatcher(DescriptorMatcher):
         return np.concatenate([desc.reshape(len(desc), self.size - 1), shape_complexity(desc)[:, None]], axis=1)
 
     def distance_matrix(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        a, b = _rows(a, "a"), _rows(b, "b")
+        a, b = as_descriptors(a, name="a"), as_descriptors(b, name="b")
         k = self.size
         if a.shape[1] != k or b.shape[1] != k:
             raise InputError(f"descriptor lengths: expected {k} for points={self.points}, segment={self.segment}, "
@@ -258,14 +258,3 @@ def _pair_order(stack: np.ndarray, i: np.ndarray, j: np.ndarray) -> tuple[np.nda
         elif x[diff[0]] > y[diff[0]]:
             first[p], second[p] = second[p], first[p]
     return first, second
-
-
-def _rows(x, name: str) -> np.ndarray:
-    arr = np.asarray(x, dtype=np.float64)
-    if arr.ndim == 1:
-        arr = arr[None, :]
-    if arr.ndim != 2:
-        raise InputError(f"{name}: expected descriptors of shape (n, K), got {arr.shape}")
-    if not np.isfinite(arr).all():
-        raise InputError(f"{name}: descriptors contain NaN or infinite values")
-    return arr
