@@ -195,10 +195,12 @@ class Session:
         return Detector(cal)(image)
 
     def obstacles_m(self) -> list[np.ndarray]:
-        """The detection's obstacle MARs in metres (what the planner avoids)."""
+        """The detection's obstacles in metres, (M, 2) ``(x, y)`` each (what the planner avoids)."""
+        from ..planning import detection_obstacles
+
         if self.detection is None:
             return []
-        return [ob.mar_m for ob in self.detection.obstacles]
+        return [np.asarray(p.exterior.coords)[:-1] for p in detection_obstacles(self.detection).polygons]
 
     def plan(self) -> Any:
         """Plan from start to goal around the detected obstacles and the dynamic ones."""
