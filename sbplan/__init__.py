@@ -25,9 +25,10 @@ __version__ = "0.1.0"
 
 #: public name -> module that defines it
 _LAZY: dict[str, str] = {
-    "plugins": "sbplan.plugins",
-    "calibrate": "sbplan.calibration",
-    "Calibration": "sbplan.calibration",
+    "registry": "sbplan.registry",
+    "plugins": "sbplan.plugins",  # the old name of sbplan.registry, kept for the docs' examples
+    "calibrate": "sbplan.detection",
+    "Calibration": "sbplan.detection",
     "detect": "sbplan.detection",
     "Detection": "sbplan.detection",
     "plan": "sbplan.planning",

@@ -52,6 +52,10 @@ class DetectionError(SbplanError):
     """A scene cannot be processed with the given calibration."""
 
 
+class CameraMotionError(DetectionError):
+    """The camera's movement since calibration cannot be estimated or is too large to compensate:
+    recalibrate (or re-anchor the calibration with ``sbplan calibrate --update``)."""
+
 class MapFormatError(InputError):
     """An obstacle file, map folder or occupancy map is missing or malformed."""
 

@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING
 import pluggy
 
 if TYPE_CHECKING:
-    from .plugins import StageRegistry
+    from .registry import StageRegistry
 
 PROJECT = "sbplan"
 hookspec = pluggy.HookspecMarker(PROJECT)
@@ -34,7 +34,7 @@ def sbplan_register_stages(registry: "StageRegistry") -> None:
     """Add stage classes to the registry.
 
     Call ``registry.add(cls)`` once per class; ``cls`` subclasses one of the contracts in
-    :mod:`sbplan.stages` and has a unique ``name`` within its kind. The kind comes from the class.
+    :mod:`sbplan.contracts` and has a unique ``name`` within its kind. The kind comes from the class.
     """
 
 

@@ -4,9 +4,9 @@ import cv2
 import numpy as np
 import pytest
 
-import sbplan.plugins as plugins
+import sbplan.registry as plugins
+from sbplan.contours import FREEMAN_STEPS, Contour
 from sbplan.errors import ContourError, InputError
-from sbplan.model import FREEMAN_STEPS, Contour
 from sbplan_approximators._common import contour_chain, polygon_deviation
 from sbplan_approximators.kka import KKA, is_digital_straight, straight_pieces
 

@@ -1,15 +1,15 @@
-"""Row bands (sbplan.bands) and the detection that uses them."""
+"""Row bands (sbplan.detection.bands) and the detection that uses them."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from sbplan.bands import RowBands
-from sbplan.calibration import calibrate
+from sbplan.detection.bands import RowBands
+from sbplan.detection.calibration import calibrate
 from sbplan.detection import Detector
 from sbplan.errors import InputError
-from sbplan.evaluation import condition_scenes
+from sbplan.bench.evaluation import condition_scenes
 
 
 def test_stack_puts_bands_one_under_the_other_with_an_empty_row_between():

@@ -6,8 +6,8 @@ import cv2
 import numpy as np
 import pytest
 
-import sbplan.plugins as plugins
-from sbplan.bands import RowBands
+import sbplan.registry as plugins
+from sbplan.detection.bands import RowBands
 from sbplan_binarizers.background import _max_filter
 
 

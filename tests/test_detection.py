@@ -13,12 +13,12 @@ import numpy as np
 import pytest
 import shapely
 
-from sbplan import export
-from sbplan.calibration import Calibration, calibrate, load_calibration
 from sbplan.detection import Detector, detect
+from sbplan.detection import exports as export
+from sbplan.detection.calibration import Calibration, calibrate, load_calibration
 from sbplan.errors import CalibrationError, DetectionError
-from sbplan.evaluation import Scores, condition_scenes, score_cells
-from sbplan.obstacles import mar_opencv, mar_shapely
+from sbplan.bench.evaluation import Scores, condition_scenes, score_cells
+from sbplan.detection.obstacles import mar_opencv, mar_shapely
 from sbplan.synth import FloorSpec, SceneSpec, render_reference, render_scene
 
 FLOOR = FloorSpec(width=800, height=600, cols=8, rows=5)
@@ -201,3 +201,17 @@ def test_calibration_with_an_image_of_the_symbol(calibration, reference, tmp_pat
     cv2.imwrite(str(tmp_path / "disc.png"), other)
     with pytest.raises(CalibrationError, match="no contour matches the given symbol"):
         calibrate(reference, symbol=tmp_path / "disc.png")
+
+
+def test_another_matcher_gets_its_descriptor_and_threshold_from_the_calibration(calibration, reference):
+    # the calibrated matcher: what calibrate() stored, untouched
+    descriptor, threshold = calibration.matching_for(calibration.stage("matcher"))
+    assert descriptor is calibration.descriptor and threshold == calibration.threshold
+    # another one: derived from the stored outlines by the same rule, and what the detector uses
+    hu = calibration.stage("matcher", "hu-moments")
+    descriptor, threshold = calibration.matching_for(hu)
+    assert descriptor.shape == hu.describe_many(calibration.symbol_polygons[:1])[0].shape
+    assert threshold != calibration.threshold
+    detector = Detector(calibration, matcher="hu-moments")
+    assert detector.threshold == threshold and np.array_equal(detector.descriptor, descriptor)
+    assert detector(reference).symbols_found == calibration.symbols_expected

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import pytest
 
-from sbplan.testing import install_plugin
+from _plugin_install import install_plugin
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ["getting-started.md", "operator-guide.md", "plugin-guide.md", "api.md"]

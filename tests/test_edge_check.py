@@ -9,10 +9,10 @@ import cv2
 import numpy as np
 import pytest
 
-from sbplan.calibration import Calibration, calibrate
+from sbplan.detection.calibration import Calibration, calibrate
 from sbplan.detection import Detector
 from sbplan.errors import InputError
-from sbplan.outline_check import (EDGE_KEEP, EDGE_MIN_REFERENCE, EDGE_SAMPLES, edge_contrast, edge_factors,
+from sbplan.detection.outline_checks import (EDGE_KEEP, EDGE_MIN_REFERENCE, EDGE_SAMPLES, edge_contrast, edge_factors,
                                   edge_probes, edges_intact)
 from sbplan.synth import FloorSpec, SceneSpec, render_reference, render_scene
 

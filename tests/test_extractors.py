@@ -11,9 +11,9 @@ import pytest
 from hypothesis import given, settings, strategies as st
 from hypothesis.extra.numpy import arrays
 
-import sbplan.plugins as plugins
+import sbplan.registry as plugins
+from sbplan.contours import FREEMAN_STEPS
 from sbplan.errors import ImageError, InputError
-from sbplan.model import FREEMAN_STEPS
 
 NAMES = ("oke", "opencv")
 
@@ -266,7 +266,7 @@ def test_both_extractors_are_registered():
 
 def test_bench_stages_reports_every_registered_stage():
     """The benchmark runs (structure only: no timing is asserted here)."""
-    from sbplan.bench import stages as bench
+    from sbplan.bench import stage_timings as bench
 
     result = bench.measure(repeat=1)
     names = {(r["stage"], r["name"]) for r in result["rows"]}

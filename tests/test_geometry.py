@@ -1,13 +1,13 @@
-"""sbplan.geometry: equation (1), areas, perimeters, resampling and the length filter."""
+"""sbplan.polygons: equation (1), areas, perimeters, resampling and the length filter."""
 
 import numpy as np
 import pytest
 import shapely
 from hypothesis import given, settings, strategies as st
 
-from sbplan import geometry as g
+from sbplan import polygons as g
+from sbplan.contours import Contour
 from sbplan.errors import ContourError, InputError
-from sbplan.model import Contour
 
 
 def star_polygon(seed, n=None, *, center=(0.0, 0.0), scale=1.0):
@@ -108,7 +108,7 @@ def test_length_filter_on_lengths_and_contours():
 
 
 def test_polygon_batch_is_a_sequence_that_pack_takes_as_is():
-    from sbplan.geometry import PolygonBatch, centroids, pack, resample_xy
+    from sbplan.polygons import PolygonBatch, centroids, pack, resample_xy
 
     rng = np.random.default_rng(4)
     polys = [rng.random((n, 2)) * 50 for n in (3, 7, 4)]
@@ -128,14 +128,14 @@ def test_polygon_batch_is_a_sequence_that_pack_takes_as_is():
 @pytest.mark.parametrize("points, counts", [(np.zeros((5, 2)), [2, 3]), (np.zeros((5, 2)), [3, 3]),
                                             (np.full((3, 2), np.nan), [3])])
 def test_polygon_batch_refuses_bad_outlines(points, counts):
-    from sbplan.geometry import PolygonBatch
+    from sbplan.polygons import PolygonBatch
 
     with pytest.raises(ContourError, match="PolygonBatch"):
         PolygonBatch(points, counts)
 
 
 def test_resample_complex_and_xy_agree_for_lists_and_batches():
-    from sbplan.geometry import PolygonBatch, resample_complex, resample_xy
+    from sbplan.polygons import PolygonBatch, resample_complex, resample_xy
 
     polys = [star_polygon(s, center=(40.0 * s, 7.0), scale=20.0) for s in range(6)]
     z = resample_complex(polys, 32)

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from sbplan.errors import CalibrationError
-from sbplan.grid import fit_grid
+from sbplan.detection.grid import fit_grid
 
 PAPER_X = [47, 146, 247, 346, 445, 544, 644, 744]
 PAPER_Y = [45, 138, 229, 322, 413, 506]

@@ -8,9 +8,9 @@ import sys
 
 def test_core_and_planner_api_do_not_import_textual():
     code = (
-        "import sys, sbplan, sbplan.plugins, sbplan.calibration, sbplan.detection, sbplan.export\n"
+        "import sys, sbplan, sbplan.registry, sbplan.detection, sbplan.detection.exports\n"
         "from sbplan import plan, replan, calibrate, detect\n"
-        "sbplan.plugins.stages()\n"
+        "sbplan.registry.stages()\n"
         "bad = sorted(m for m in sys.modules if m == 'textual' or m.startswith('textual.'))\n"
         "print(bad)\n"
     )

@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-import sbplan.plugins as plugins
+import sbplan.registry as plugins
+from sbplan.contracts import DescriptorMatcher
 from sbplan.errors import ContourError, InputError
-from sbplan.stages import DescriptorMatcher
 
 NAMES = ["fourier", "centroid-distance", "hu-moments"]
 #: Largest distance between a polygon and an exactly transformed copy (translation, rotation,

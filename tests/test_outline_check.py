@@ -9,11 +9,11 @@ import cv2
 import numpy as np
 import pytest
 
-from sbplan.calibration import Calibration, calibrate
 from sbplan.detection import Detector
-from sbplan.evaluation import condition_scenes
-from sbplan.outline_check import (INNER_MARGIN_PX, SAMPLES, hidden_piece, inner_tolerance, outline_deviation,
-                                  reference_samples, signed_distance_map, signed_distances_to_polygon)
+from sbplan.detection.calibration import Calibration, calibrate
+from sbplan.detection.outline_checks import (INNER_MARGIN_PX, SAMPLES, hidden_piece, inner_tolerance, outline_deviation,
+                                             reference_samples, signed_distance_map, signed_distances_to_polygon)
+from sbplan.bench.evaluation import condition_scenes
 
 # an L with a thin flag-like tip to the right, as a fixed camera would see one symbol
 SYMBOL = np.array([[20, 20], [70, 20], [52, 32], [60, 44], [34, 44], [34, 80], [20, 80]], float)
@@ -120,8 +120,8 @@ def test_calibration_files_without_inner_tolerances_still_load_and_detect(bench_
 
 
 def test_samples_deviation_is_outline_deviation_from_given_samples():
-    from sbplan.geometry import resample_xy
-    from sbplan.outline_check import samples_deviation
+    from sbplan.detection.outline_checks import samples_deviation
+    from sbplan.polygons import resample_xy
 
     square = np.array([[10.0, 10.0], [30.0, 10.0], [30.0, 30.0], [10.0, 30.0]])
     dmap = signed_distance_map([square], (40, 40))

@@ -1,4 +1,4 @@
-"""Obstacle loaders on real files (sbplan.export outputs of a detection, the OMPL maze images) and
+"""Obstacle loaders on real files (sbplan.detection.exports outputs of a detection, the OMPL maze images) and
 the ``sbplan plan`` command (subprocess: exit codes, one-line errors, no OMPL log without -v)."""
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import shapely
 import shapely.affinity
 from shapely.geometry import LineString, box
 
-from sbplan import export
+from sbplan.detection import exports as export
 from sbplan.errors import InputError, MapFormatError
 from sbplan.planning import PlanningMap, detection_obstacles, load_obstacles
 from sbplan.planning.loaders import occupancy_rectangles
@@ -28,7 +28,7 @@ MAZES = ROOT / "maps" / "ompl-mazes"
 
 @pytest.fixture(scope="module")
 def detection_files(tmp_path_factory):
-    from sbplan.calibration import calibrate
+    from sbplan.detection.calibration import calibrate
     from sbplan.detection import Detector
     from sbplan.imageio import load_image, write_json
     from sbplan.workspace import load_workspace

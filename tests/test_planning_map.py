@@ -11,7 +11,7 @@ import shapely
 from shapely.geometry import LineString, Point, box
 
 import sbplan
-from sbplan import plugins
+from sbplan import registry
 from sbplan.errors import InputError, NoRouteError, PlanningError
 from sbplan.planning import PlanningMap
 from sbplan.planning.aux_corner import AuxCornerPlanner, solve_aux_corner
@@ -163,7 +163,7 @@ def test_plan_on_a_map_takes_its_radius_and_margin():
 
 
 def test_the_registry_gives_the_core_solver_as_the_aux_corner_stage():
-    stage = plugins.planner("aux-corner")
+    stage = registry.planner("aux-corner")
     assert type(stage) is AuxCornerPlanner
     pm = PlanningMap([box(40, 40, 60, 60)], robot_radius=1.0, bounds=B)
     direct = solve_aux_corner(pm, (10, 50), (90, 50))

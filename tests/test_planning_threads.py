@@ -18,7 +18,7 @@ from shapely import affinity
 from shapely.geometry import box
 
 import sbplan
-from sbplan import plugins
+from sbplan import registry
 from sbplan.errors import PlanningError
 from sbplan.planning import PlanningMap
 from sbplan.planning.plan_replan import MAPS
@@ -147,7 +147,7 @@ def test_seeded_ompl_solves_from_threads_equal_one_thread():
     seeds = list(range(1, 9))
 
     def solve(seed):
-        stage = plugins.planner("rrt-connect", seed=seed)
+        stage = registry.planner("rrt-connect", seed=seed)
         return sbplan.plan(obs, (10, 50), (90, 50), robot_radius=1.0, bounds=B, planner=stage,
                            time_limit=1.0).waypoints.tolist()
 

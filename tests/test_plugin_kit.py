@@ -13,13 +13,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sbplan import plugins
+from sbplan import registry as plugins
+from sbplan.contours import Contour
+from sbplan.contracts import Binarizer, ContourExtractor, DescriptorMatcher, Planner
 from sbplan.errors import UnknownStageError
-from sbplan.model import Contour
-from sbplan.stages import Binarizer, ContourExtractor, DescriptorMatcher, Planner
 from sbplan.testing import (CHECKS, ApproximatorContract, BinarizerContract, ExtractorContract, MapperContract,
-                            MatcherContract, PlannerContract, calibrated_pipeline, check_stage, install_plugin, register_stage,
+                            MatcherContract, PlannerContract, calibrated_pipeline, check_stage, register_stage,
                             registered, sample_outlines, tiny_floor)  # noqa: F401  (fixtures are used by name)
+
+from _plugin_install import install_plugin
 
 ROOT = Path(__file__).resolve().parents[1]
 PLUGIN = ROOT / "plugins" / "sbplan-elliptic-fourier"
@@ -139,7 +141,7 @@ def test_the_checks_catch_broken_stages(stage, broken_check):
 
 
 def test_declaration_check_wants_help_texts():
-    from sbplan.stages import option
+    from sbplan.contracts import option
     from sbplan.testing import check_declaration
 
     @dataclass(kw_only=True, frozen=True)
@@ -333,3 +335,26 @@ def test_symbols_hook_adds_a_candidate_symbol():
     # the registered outline is one the renderer can print on a floor
     ref = render_reference(FloorSpec(width=160, height=120, cols=2, rows=2, symbol=info.polygon), seed=0)
     assert (ref < 100).any()
+
+
+def test_the_kit_imports_and_checks_without_pytest():
+    # A plain install has no pytest (it is the `testing` extra): the checks must still work, and the
+    # fixtures and contract suites must say what is missing instead of failing on import.
+    code = (
+        "import sys\n"
+        "sys.modules['pytest'] = None  # any 'import pytest' now raises ModuleNotFoundError\n"
+        "import sbplan.testing as kit\n"
+        "from sbplan import registry\n"
+        "kit.check_stage(registry.matcher('fourier'))\n"
+        "print(sorted(kit.sample_outlines()), 'pytest' in sys.modules and sys.modules['pytest'] is not None)\n"
+        "try:\n"
+        "    from sbplan.testing import MatcherContract\n"
+        "except ImportError as exc:\n"
+        "    print('ImportError:', exc)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    lines = out.stdout.splitlines()
+    assert lines[0] == "['blob', 'circle', 'ell', 'flag', 'square', 'thin-triangle'] False"
+    assert lines[1].startswith("ImportError: sbplan.testing.MatcherContract needs pytest")
+    assert "sbplan[testing]" in lines[1]

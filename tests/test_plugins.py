@@ -10,10 +10,10 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from sbplan import plugins
+from sbplan import registry as plugins
+from sbplan.contracts import KINDS, DescriptorMatcher, option
 from sbplan.errors import InputError, PluginError, UnknownStageError
 from sbplan.hookspecs import hookimpl
-from sbplan.stages import KINDS, DescriptorMatcher, option
 
 
 @dataclass(kw_only=True, frozen=True)
@@ -116,7 +116,7 @@ def test_a_broken_plugin_is_reported_by_name_and_others_still_load(tmp_path):
     code = textwrap.dedent(f"""
         import sys, warnings
         sys.path.insert(0, {str(tmp_path)!r})
-        from sbplan import plugins
+        from sbplan import registry as plugins
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             reg = plugins.build_registry()

@@ -7,7 +7,7 @@ import pytest
 from shapely import affinity
 from shapely.geometry import Polygon
 
-from sbplan import plugins
+from sbplan import registry as plugins
 from sbplan.errors import SceneError
 from sbplan.synth import DEFAULT_SYMBOL, rings_centroid, symbol_outline
 

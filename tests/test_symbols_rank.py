@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from sbplan import plugins
+from sbplan import registry as plugins
 from sbplan.errors import InputError
 from sbplan.symbols import rank as R
 from sbplan.symbols.noise import NOISE_FAMILIES, noise_set
@@ -153,8 +153,8 @@ def test_recommended_symbol_meets_every_condition(ranking):
 
 
 def test_recommended_symbol_is_detected_perfectly_on_clean_scenes(ranking):
-    from sbplan.calibration import calibrate
     from sbplan.detection import detect
+    from sbplan.detection.calibration import calibrate
     from sbplan.synth import AMBIGUOUS, FloorSpec, SceneSpec, render_reference, render_scene
 
     floor = FloorSpec(width=960, height=720, cols=8, rows=6, symbol=ranking.recommended)

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from sbplan.contours import FREEMAN_STEPS, Contour, as_points
 from sbplan.errors import ContourError
-from sbplan.model import FREEMAN_STEPS, Contour, as_points
 
 
 def contour_points(contour) -> np.ndarray:

@@ -8,10 +8,10 @@ from typing import ClassVar
 import cv2
 import numpy as np
 
+from sbplan.contours import Contour
+from sbplan.contracts import ContourApproximator, option
 from sbplan.errors import InputError
-from sbplan.geometry import PolygonBatch
-from sbplan.model import Contour
-from sbplan.stages import ContourApproximator, option
+from sbplan.polygons import PolygonBatch
 
 from ._common import contour_points, three_vertices
 
@@ -58,9 +58,9 @@ class DouglasPeucker(ContourApproximator):
         return out
 
     def approximate_many(self, contours) -> PolygonBatch:
-        """:meth:`approximate` of many contours, as one :class:`~sbplan.geometry.PolygonBatch`.
+        """:meth:`approximate` of many contours, as one :class:`~sbplan.polygons.PolygonBatch`.
 
-        For :class:`~sbplan.model.Contour` input with a fixed tolerance, the per-contour validation
+        For :class:`~sbplan.contours.Contour` input with a fixed tolerance, the per-contour validation
         and float conversion are skipped (the extractor's pixels are valid by construction): that
         is most of a small contour's cost.
         """

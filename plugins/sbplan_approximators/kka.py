@@ -33,8 +33,8 @@ from typing import ClassVar
 
 import numpy as np
 
+from sbplan.contracts import ContourApproximator, option
 from sbplan.errors import ContourError, InputError
-from sbplan.stages import ContourApproximator, option
 
 from ._common import contour_chain, contour_points, three_vertices
 
@@ -98,7 +98,7 @@ def straight_pieces(chain) -> np.ndarray:
     Parameters
     ----------
     chain : array_like of shape (N,), int
-        Freeman codes of a closed contour (``sbplan.model.FREEMAN_STEPS``), N >= 1.
+        Freeman codes of a closed contour (``sbplan.contours.FREEMAN_STEPS``), N >= 1.
 
     Returns
     -------

@@ -10,9 +10,9 @@ from typing import ClassVar
 import cv2
 import numpy as np
 
+from sbplan.contracts import Binarizer, option
 from sbplan.errors import InputError
 from sbplan.imageio import as_gray
-from sbplan.stages import Binarizer, option
 
 
 @dataclass(kw_only=True, frozen=True)

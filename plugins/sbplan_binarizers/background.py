@@ -14,8 +14,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from sbplan.contracts import option
 from sbplan.errors import InputError
-from sbplan.stages import option
 
 from ._local import LocalThresholdBinarizer
 

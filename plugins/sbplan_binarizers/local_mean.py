@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from sbplan.stages import option
+from sbplan.contracts import option
 
 from ._local import LocalThresholdBinarizer
 

@@ -11,8 +11,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from sbplan.contracts import Binarizer
 from sbplan.imageio import as_gray
-from sbplan.stages import Binarizer
 
 
 @dataclass(kw_only=True, frozen=True)

@@ -1,5 +1,5 @@
 """What both extractors share: input validation and the conversion of concatenated boundary
-pixels into :class:`sbplan.model.Contour` objects."""
+pixels into :class:`sbplan.contours.Contour` objects."""
 
 from __future__ import annotations
 
@@ -9,9 +9,9 @@ from typing import Any
 import cv2
 import numpy as np
 
+from sbplan.contours import FREEMAN_STEPS, Contour
+from sbplan.contracts import ContourExtractor, option
 from sbplan.errors import ImageError, InputError
-from sbplan.model import FREEMAN_STEPS, Contour
-from sbplan.stages import ContourExtractor, option
 
 # Freeman code of a step (dx, dy), indexed by (dx + 1) * 3 + (dy + 1); 255 marks "not a step".
 _STEP_CODE = np.full(9, 255, np.uint8)

@@ -50,7 +50,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sbplan.model import Contour
+from sbplan.contours import Contour
 
 from ._common import BoundaryExtractor, as_mask, build_contours
 

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from sbplan.model import Contour
+from sbplan.contours import Contour
 
 from ._common import BoundaryExtractor, as_mask, build_contours
 

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sbplan.stages import OccupancyMapper
+from sbplan.contracts import OccupancyMapper
 
 
 @dataclass(kw_only=True, frozen=True)

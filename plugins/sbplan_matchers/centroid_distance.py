@@ -7,10 +7,10 @@ from typing import ClassVar, Sequence
 
 import numpy as np
 
+from sbplan.contours import as_points
+from sbplan.contracts import DescriptorMatcher, option
 from sbplan.errors import ContourError, InputError
-from sbplan.geometry import resample_xy
-from sbplan.model import as_points
-from sbplan.stages import DescriptorMatcher, option
+from sbplan.polygons import resample_xy
 
 from .fourier import euclidean_matrix
 

@@ -8,10 +8,10 @@ from typing import ClassVar, Sequence
 
 import numpy as np
 
+from sbplan.contours import as_points
+from sbplan.contracts import DescriptorMatcher, option
 from sbplan.errors import ContourError, InputError
-from sbplan.geometry import resample_complex
-from sbplan.model import as_points
-from sbplan.stages import DescriptorMatcher, option
+from sbplan.polygons import resample_complex
 
 __all__ = ["FourierMatcher", "fourier_coefficients", "fourier_descriptors"]
 

@@ -8,10 +8,10 @@ from typing import ClassVar, Sequence
 import cv2
 import numpy as np
 
+from sbplan.contours import as_points
+from sbplan.contracts import DescriptorMatcher
 from sbplan.errors import ContourError, InputError
-from sbplan.geometry import pack
-from sbplan.model import as_points
-from sbplan.stages import DescriptorMatcher
+from sbplan.polygons import pack
 
 from .fourier import _descriptors
 

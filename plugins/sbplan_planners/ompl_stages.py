@@ -8,9 +8,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import ClassVar
 
+from sbplan.contracts import Planner, option
 from sbplan.errors import InputError
 from sbplan.planning.route import Problem, Route
-from sbplan.stages import Planner, option
 
 
 @dataclass(kw_only=True, frozen=True)

@@ -4,7 +4,7 @@ For every condition of the renderer's suite (:data:`sbplan.synth.CONDITIONS`) th
 scenes (same obstacles, lighting draws and noise) are rendered twice: on the symbol floor, which
 sbplan and the background-subtraction baselines see, and on the ArUco marker floor
 (``FloorSpec(layout="aruco")``), which the marker baseline sees. Each method is set up once per
-condition from the reference image of the empty floor (sbplan: :func:`sbplan.calibration.calibrate`;
+condition from the reference image of the empty floor (sbplan: :func:`sbplan.detection.calibrate`;
 baselines: :mod:`sbplan.bench.baselines`), then every frame goes image in -> occupied cells out.
 
 Scores are cell-level precision, recall and F1 against each layout's ground truth, summed over the
@@ -86,14 +86,14 @@ def _conditions(given: list[str] | None) -> list[str]:
 
 def sbplan_variants(*, all_variants: bool = True) -> list[tuple[str, dict[str, str]]]:
     """``(label, stage overrides)``: the default pipeline, then one registered stage swapped at a time."""
-    from sbplan import plugins
-    from sbplan.calibration import DEFAULT_STAGES
+    from sbplan import registry
+    from sbplan.detection.calibration import DEFAULT_STAGES
 
     out = [(DEFAULT, {})]
     if not all_variants:
         return out
     for kind in KINDS:
-        for name in getattr(plugins, f"{kind}_names")():
+        for name in getattr(registry, f"{kind}_names")():
             if name != DEFAULT_STAGES[kind]:
                 out.append((f"sbplan {kind}={name}", {kind: name}))
     return out
@@ -124,10 +124,10 @@ def measure(*, conditions: list[str] | None = None, scenes: int = 5, size: tuple
         time over the ArUco grid's; ``setup``: what was run.
     """
     from sbplan.bench.baselines import AbsDiff, ArucoGrid, Mog2
-    from sbplan.calibration import calibrate
     from sbplan.detection import Detector
+    from sbplan.detection.calibration import calibrate
     from sbplan.errors import InputError, SbplanError
-    from sbplan.evaluation import Scores, condition_scenes, score_cells
+    from sbplan.bench.evaluation import Scores, condition_scenes, score_cells
     from sbplan.synth import FloorSpec
 
     names = _conditions(conditions)

@@ -122,7 +122,7 @@ def run(args: argparse.Namespace) -> int:
     import os
     import platform
 
-    from .. import plugins
+    from .. import registry
     from ..errors import InputError, SbplanError
     from .silhouettes import load_silhouettes, make_silhouettes
 
@@ -139,12 +139,12 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"{folder}: needs at least two classes, found {len(set(data.labels))}")
     outlines = data.outlines
     if args.approximator:
-        approx = plugins.approximator(args.approximator)
+        approx = registry.approximator(args.approximator)
         outlines = [approx.approximate(o) for o in outlines]
-    names = [s.strip() for s in args.matchers.split(",") if s.strip()] or plugins.matcher_names()
+    names = [s.strip() for s in args.matchers.split(",") if s.strip()] or registry.matcher_names()
     rows = []
     for name in names:
-        matcher = plugins.matcher(name)
+        matcher = registry.matcher(name)
         try:
             result = evaluate(matcher, outlines, data.labels, repeat=args.repeat)
         except SbplanError as exc:  # a third-party matcher that fails is reported, not fatal

@@ -9,7 +9,7 @@ HELP = "run a benchmark (match, stages, ...) and print its table"
 
 #: Benchmark name -> module under sbplan.bench.
 BENCHMARKS: dict[str, str] = {
-    "stages": "sbplan.bench.stages",
+    "stages": "sbplan.bench.stage_timings",
     "match": "sbplan.bench.match",
     "detect": "sbplan.bench.detect",
     "plan": "sbplan.bench.plan",

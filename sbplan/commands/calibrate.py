@@ -5,14 +5,19 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ._stages import add_stage_arguments, stage_choices
+from ._stage_options import add_stage_arguments, stage_choices
 
 HELP = "calibrate on a reference image of the empty floor and write a calibration file"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("reference", help="reference image (empty floor, every symbol visible)")
-    parser.add_argument("-o", "--output", required=True, help="calibration file to write (JSON, atomically)")
+    parser.add_argument("reference", help="reference image (empty floor, every symbol visible); with --update, "
+                                          "a current frame from the moved camera (obstacles allowed)")
+    parser.add_argument("-o", "--output", help="calibration file to write (JSON, atomically); "
+                                               "with --update the default is the updated file itself")
+    parser.add_argument("--update", metavar="CALIBRATION",
+                        help="re-anchor this calibration to the camera's present pose from the frame given "
+                             "(the free symbols are used; the file stays as it was if that fails)")
     parser.add_argument("--symbol", help="an image of one reference symbol (default: the most repeated shape)")
     scale = parser.add_mutually_exclusive_group()
     scale.add_argument("--cell-size", type=float, metavar="METRES", help="grid pitch in metres")
@@ -22,8 +27,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..calibration import calibrate
+    from ..detection.calibration import calibrate, load_calibration, update_calibration
+    from ..errors import InputError
 
+    if args.update is not None:
+        if args.symbol or args.cell_size is not None or args.workspace:
+            raise InputError("--update: --symbol, --cell-size and --workspace belong to a new calibration; "
+                             "an update keeps the calibration's own")
+        old = load_calibration(args.update)
+        cal, motion = update_calibration(old, args.reference, **stage_choices(args))
+        output = args.output or args.update
+        cal.save(output)
+        print(f"re-anchored to the {motion.summary()}")
+        print(f"wrote {output}")
+        return 0
+    if not args.output:
+        raise InputError("-o/--output: the calibration file to write is required")
     workspace = args.workspace
     if workspace is None and args.cell_size is None:
         beside = Path(args.reference).parent / "workspace.toml"

@@ -18,8 +18,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from .. import export
-    from ..calibration import calibrate
+    from ..detection import exports
+    from ..detection.calibration import calibrate
     from ..detection import Detector
     from ..errors import MapFormatError
     from ..imageio import load_image, write_json
@@ -42,10 +42,10 @@ def run(args: argparse.Namespace) -> int:
     for line in summary_lines(detection):
         print("  " + line)
     write_json(out / "result.json", detection.to_json())
-    export.write_overlay(out / "overlay.png", image, detection)
-    export.write_occupancy(out / "occupancy.png", detection)
-    export.write_geojson(out / "obstacles.geojson", detection)
-    export.write_nav2(out / "nav2", detection)
+    exports.write_overlay(out / "overlay.png", image, detection)
+    exports.write_occupancy(out / "occupancy.png", detection)
+    exports.write_geojson(out / "obstacles.geojson", detection)
+    exports.write_nav2(out / "nav2", detection)
     ws = cal.workspace
     if ws.start_m and ws.goal_m:
         from ..planning import detection_obstacles, plan

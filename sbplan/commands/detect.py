@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 
-from ._stages import add_stage_arguments, stage_choices
+from ._stage_options import add_stage_arguments, stage_choices
 
 HELP = "detect occupied cells and obstacles in a scene image"
 
@@ -24,7 +25,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def summary_lines(detection) -> list[str]:
-    from ..obstacles import axis_angle
+    from ..detection.obstacles import axis_angle
 
     lines = [
         f"symbols: {detection.symbols_expected} expected, {detection.symbols_found} found",
@@ -32,6 +33,8 @@ def summary_lines(detection) -> list[str]:
         + " ".join(f"({r},{c})" for r, c in detection.occupied_cells),
         f"obstacles: {len(detection.obstacles)}",
     ]
+    if detection.camera.model != "none":
+        lines.insert(0, detection.camera.summary())
     for ob in detection.obstacles:
         j = ob.to_json()
         lines.append(f"  #{ob.id}: {len(ob.cells)} cells, MAR {j['size_m'][0]:.2f} x {j['size_m'][1]:.2f} m "
@@ -42,9 +45,9 @@ def summary_lines(detection) -> list[str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from .. import export
-    from ..calibration import load_calibration
+    from ..detection import exports
     from ..detection import Detector
+    from ..detection.calibration import load_calibration
     from ..imageio import load_image, write_json
 
     cal = load_calibration(args.calibration)
@@ -54,13 +57,15 @@ def run(args: argparse.Namespace) -> int:
     if args.output:
         write_json(args.output, result)
     if args.overlay:
-        export.write_overlay(args.overlay, image, detection)
+        exports.write_overlay(args.overlay, image, detection)
     if args.occupancy:
-        export.write_occupancy(args.occupancy, detection)
+        exports.write_occupancy(args.occupancy, detection)
     if args.geojson:
-        export.write_geojson(args.geojson, detection)
+        exports.write_geojson(args.geojson, detection)
     if args.nav2:
-        export.write_nav2(args.nav2, detection, resolution=args.nav2_resolution)
+        exports.write_nav2(args.nav2, detection, resolution=args.nav2_resolution)
+    if detection.camera.warning:
+        print(f"sbplan: warning: {detection.camera.warning}", file=sys.stderr)
     if args.json:
         print(json.dumps(result))
     else:

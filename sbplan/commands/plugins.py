@@ -16,18 +16,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import warnings
 
-    from .. import plugins
+    from .. import registry
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # failures are listed below instead
-        infos = plugins.stages()
-        failures = plugins.load_errors()
+        infos = registry.stages()
+        failures = registry.load_errors()
     if args.json:
         print(json.dumps({
             "stages": [{"kind": s.kind, "name": s.name, "origin": s.origin, "description": s.description,
                         "options": [{"name": o.name, "type": o.type.__name__, "default": o.default, "help": o.help}
                                     for o in s.cls.options()]} for s in infos],
-            "symbols": plugins.symbol_names(),
+            "symbols": registry.symbol_names(),
             "failures": [{"plugin": f.plugin, "origin": f.origin, "error": f.error} for f in failures],
         }, indent=2, default=str))
         return 1 if failures else 0
@@ -39,7 +39,7 @@ def run(args: argparse.Namespace) -> int:
             cls = next(s.cls for s in infos if (s.kind, s.name) == (r[0], r[1]))
             for o in cls.options():
                 print(f"{'':<{widths[0]}}    --option {o.name}={o.default!r}  ({o.type.__name__}) {o.help}")
-    symbols = plugins.symbol_names()
+    symbols = registry.symbol_names()
     if symbols:
         print(f"\n{len(symbols)} candidate symbols: {', '.join(symbols)}")
     for f in failures:

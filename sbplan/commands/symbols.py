@@ -161,8 +161,8 @@ def _show(args: argparse.Namespace) -> int:
 
 
 def _list(args: argparse.Namespace) -> int:
-    from .. import plugins
+    from .. import registry
 
-    for name, info in plugins.registry().symbols().items():
+    for name, info in registry.registry().symbols().items():
         print(f"{name:<20} {info.description}")
     return 0

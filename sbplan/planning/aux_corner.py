@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from ..stages import Planner
+from ..contracts import Planner
 from .geometry import as_point
 from .route import Problem, Route
 

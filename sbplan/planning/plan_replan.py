@@ -16,7 +16,7 @@ import numpy as np
 import shapely
 from shapely.geometry import LineString, Point, Polygon
 
-from .. import plugins
+from .. import registry
 from ..errors import InputError
 from .geometry import as_point, as_polygons, nonneg
 from .planning_map import PlanningMap
@@ -119,7 +119,7 @@ def plan(obstacles: Any, start: Any, goal: Any, *, robot_radius: float | None = 
             nonneg(v, name)
     tl = nonneg(time_limit, "time_limit")
     s, g = as_point(start, "start")[0], as_point(goal, "goal")[0]
-    stage = plugins.planner(planner)
+    stage = registry.planner(planner)
     pm = _map_for(obstacles, s, g, robot_radius, margin, bounds)
     return stage.solve(Problem(pm, s, g), time_limit=tl)
 
@@ -149,7 +149,7 @@ def replan(route: Route, position: Any, new_obstacles: Any, *, planner: Any = No
     t0 = time.perf_counter()
     p = as_point(position, "position")[0]
     tl = nonneg(time_limit, "time_limit")
-    stage = plugins.planner(route.planner if planner is None else planner)
+    stage = registry.planner(route.planner if planner is None else planner)
     # A copy, so the caller's route (and the maps plan() keeps) keep the old obstacles.
     pm = route.map.copy()
     big = pm.add_obstacles([new_obstacles] if isinstance(new_obstacles, Polygon) else new_obstacles)

@@ -48,7 +48,7 @@ from typing import Any, Callable, Mapping, Sequence
 import cv2
 import numpy as np
 
-from .. import plugins
+from .. import registry
 from ..errors import InputError, SbplanError
 from .noise import NOISE_FAMILIES, noise_set, parse_families
 from .raster import coverage, place, symbol_rings
@@ -83,7 +83,7 @@ def distance_matrix(descriptors: np.ndarray, matcher: Any = None) -> np.ndarray:
     if matcher is None:
         d = a[:, None, :] - a[None, :, :]
         return np.sqrt(np.einsum("ijk,ijk->ij", d, d))
-    m = plugins.matcher(matcher) if isinstance(matcher, str) else matcher
+    m = registry.matcher(matcher) if isinstance(matcher, str) else matcher
     d = np.asarray(m.distance_matrix(a, a), np.float64)
     d = 0.5 * (d + d.T)  # guard against round-off asymmetry of a plugin's distance
     np.fill_diagonal(d, 0.0)
@@ -187,7 +187,7 @@ def outline_of(gray: np.ndarray, *, binarizer: Any, extractor: Any, approximator
 
 
 def _stages(binarizer: Any, extractor: Any, approximator: Any, matcher: Any) -> dict[str, Any]:
-    reg = plugins.registry()
+    reg = registry.registry()
     return {kind: reg.create(kind, given) for kind, given in
             (("binarizer", binarizer), ("extractor", extractor), ("approximator", approximator),
              ("matcher", matcher))}
@@ -365,7 +365,7 @@ def rank_symbols(candidates: Sequence[str] | Mapping[str, Any] | None = None, *,
     Parameters
     ----------
     candidates : list of names, or mapping name -> rings, or None
-        Registered symbol names (``sbplan.plugins.symbol_names()``) or ``{name: [outline, *holes]}``
+        Registered symbol names (``sbplan.registry.symbol_names()``) or ``{name: [outline, *holes]}``
         polygons in a unit box, y down. None: every registered symbol. At least 2.
     matcher, binarizer, extractor, approximator : str or Stage
         The stages that produce the descriptors.
@@ -390,7 +390,7 @@ def rank_symbols(candidates: Sequence[str] | Mapping[str, Any] | None = None, *,
     """
     t0 = time.perf_counter()
     if candidates is None:
-        candidates = plugins.symbol_names()
+        candidates = registry.symbol_names()
     if isinstance(candidates, Mapping):
         names = [str(n) for n in candidates]
         rings_of = {n: symbol_rings(candidates[n]) for n in names}

@@ -102,3 +102,46 @@ def _maps(width: int, height: int, tilt: tuple[float, float], distortion: float)
     mx.setflags(write=False)
     my.setflags(write=False)
     return mx, my
+
+
+def motion_matrix(width: int, height: int, motion) -> np.ndarray:
+    """The 3x3 map from the calibrated view's pixels to a moved camera's pixels.
+
+    Parameters
+    ----------
+    width, height : int
+        Image size.
+    motion : (dx, dy, rotation_deg, scale)
+        A similarity about the image centre ``c``: ``p -> scale * R (p - c) + c + (dx, dy)``, with
+        ``R`` a rotation counter-clockwise as displayed (y down).
+
+    Returns
+    -------
+    ndarray of shape (3, 3), float64, acting on ``(x, y, 1)``.
+    """
+    dx, dy, rot, scale = (float(v) for v in motion)
+    c = np.array([(width - 1) / 2.0, (height - 1) / 2.0])
+    a = math.radians(rot)
+    # counter-clockwise as displayed with y down: x' = x cos + y sin, y' = -x sin + y cos
+    lin = scale * np.array([[math.cos(a), math.sin(a)], [-math.sin(a), math.cos(a)]])
+    m = np.eye(3)
+    m[:2, :2] = lin
+    m[:2, 2] = c + (dx, dy) - lin @ c
+    return m
+
+
+def moved_view(floor_image: np.ndarray, camera: Camera, matrix: np.ndarray) -> np.ndarray:
+    """What ``camera`` moved by ``matrix`` (:func:`motion_matrix`) sees of ``floor_image`` (the
+    floor plane, the image's size), in one interpolation: each moved pixel reads the floor point
+    the calibrated camera saw there."""
+    h, w = floor_image.shape[:2]
+    inv = np.linalg.inv(matrix)
+    if camera.identity:
+        # warpAffine takes the forward map and reads dst(p) = src(matrix^-1 p)
+        return cv2.warpAffine(floor_image, matrix[:2].astype(np.float64), (w, h), flags=cv2.INTER_LINEAR,
+                              borderMode=cv2.BORDER_REFLECT)
+    ys, xs = np.mgrid[0:h, 0:w].astype(np.float64)
+    p = np.stack([xs, ys], axis=-1) @ inv[:2, :2].T + inv[:2, 2]
+    f = camera.image_to_floor(p)
+    return cv2.remap(floor_image, f[..., 0].astype(np.float32), f[..., 1].astype(np.float32), cv2.INTER_LINEAR,
+                     borderMode=cv2.BORDER_REFLECT)

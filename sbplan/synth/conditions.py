@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -45,6 +46,23 @@ class Effects:
         Radial distortion k1 overriding the floor's (same remark).
     texture_contrast : float
         Multiplier of the obstacles' texture amplitude (the "textured" condition raises it).
+    motion : (float, float, float, float) or None
+        The camera's movement since calibration: ``(dx, dy, rotation_deg, scale)``, a similarity of
+        the image about its centre (:func:`sbplan.synth.camera.motion_matrix`): the scene shows
+        what the calibrated view shows at ``p`` at ``scale * R(rotation) (p - c) + c + (dx, dy)``;
+        rotation counter-clockwise as displayed. Scenes only: the reference is the calibration's
+        view and never moves.
+    vibration : float
+        Random camera movement since calibration, drawn from the seed: a shift of up to
+        ``8 * vibration`` px, a rotation of up to ``0.5 * vibration`` degrees and a zoom of up to
+        ``1 % * vibration`` either way (added to ``motion``).
+    drift : float
+        A slow drift along one path, ``(6, -3) px, 0.4 deg, +0.8 %`` times ``drift`` times a point
+        of the path drawn from the seed (a sequence of seeds samples the drift at several times).
+    wear : float
+        Floor wear after calibration, 0..1: thin scratches of floor colour across symbols (1 to 3 px
+        wide), dark dirt specks (1 to 3 px) and dark tyre marks on the floor between symbols.
+        Cells stay free: wear is not an obstacle.
     """
 
     gain: float = 1.0
@@ -59,12 +77,17 @@ class Effects:
     tilt: Any = None
     distortion: Any = None
     texture_contrast: float = 1.0
+    motion: Any = None
+    vibration: float = 0.0
+    drift: float = 0.0
+    wear: float = 0.0
 
     def __post_init__(self) -> None:
         checks = {
             "gain": (0.05, 3.0), "offset": (-100.0, 100.0), "gradient": (0.0, 0.8), "shadows": (0.0, 0.8),
             "highlights": (0, 50), "highlight_strength": (0.0, 110.0), "noise": (0.0, 40.0),
             "blur": (0.0, 8.0), "jpeg": (0, 100), "texture_contrast": (0.0, 5.0),
+            "vibration": (0.0, 4.0), "drift": (0.0, 4.0), "wear": (0.0, 1.0),
         }
         for name, (lo, hi) in checks.items():
             v = getattr(self, name)
@@ -80,11 +103,27 @@ class Effects:
             object.__setattr__(self, "tilt", (a, b))
         if self.distortion is not None and not (-0.3 <= float(self.distortion) <= 0.3):
             raise SceneError(f"effects.distortion: must lie in [-0.3, 0.3], got {self.distortion!r}")
+        if self.motion is not None:
+            try:
+                dx, dy, rot, scale = (float(x) for x in self.motion)
+            except (TypeError, ValueError):
+                raise SceneError(f"effects.motion: expected (dx, dy, rotation_deg, scale), got {self.motion!r}") from None
+            if not (math.hypot(dx, dy) <= 200 and abs(rot) <= 10 and 0.8 <= scale <= 1.25):
+                raise SceneError(f"effects.motion: at most 200 px, 10 degrees and a scale in [0.8, 1.25], "
+                                 f"got {self.motion!r}")
+            object.__setattr__(self, "motion", (dx, dy, rot, scale))
 
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
         if d["tilt"] is not None:
             d["tilt"] = list(d["tilt"])
+        # camera movement and wear came later: left out at their defaults, so that the ground
+        # truth of scenes without them reads as it always did
+        for key, default in (("motion", None), ("vibration", 0.0), ("drift", 0.0), ("wear", 0.0)):
+            if d[key] == default:
+                del d[key]
+            elif key == "motion":
+                d[key] = list(d[key])
         return d
 
 
@@ -109,6 +148,21 @@ _TABLE: dict[str, tuple[str, dict[str, Any]]] = {
     "adverse": ("gradient, shadows, two highlights, noise 4 and JPEG 60 together",
                 {"gradient": 0.25, "shadows": 0.4, "highlights": 2, "highlight_strength": 80.0, "noise": 4.0,
                  "jpeg": 60}),
+    # The camera moved after calibration (the reference is rendered unmoved).
+    "shift-1": ("camera shifted by (0.7, -0.7) px since calibration (sub-pixel registration)",
+                {"motion": (0.7, -0.7, 0.0, 1.0)}),
+    "shift-8": ("camera shifted by (6.4, 4.8) px, 8 px in all, since calibration", {"motion": (6.4, 4.8, 0.0, 1.0)}),
+    "rotation": ("camera rotated by 0.5 deg since calibration", {"motion": (0.0, 0.0, 0.5, 1.0)}),
+    "zoom-in": ("camera 1 % closer to the floor since calibration (image scaled by 1.01)",
+                {"motion": (0.0, 0.0, 0.0, 1.01)}),
+    "zoom-out": ("camera 1 % farther (image scaled by 0.99) and shifted by (-3, 2) px since calibration",
+                 {"motion": (-3.0, 2.0, 0.0, 0.99)}),
+    "vibration": ("random camera movement per scene: up to 8 px, 0.5 deg and 1 % zoom", {"vibration": 1.0}),
+    "drift": ("slow drift: a point of a path to (6, -3) px, 0.4 deg, +0.8 % per scene", {"drift": 1.0}),
+    # The floor wore after calibration.
+    "worn": ("scratches across symbols, dirt specks and dark tyre marks between symbols", {"wear": 1.0}),
+    "worn-moved": ("worn floor, shadows and a camera moved by (-5, 3) px and 0.3 deg",
+                   {"wear": 1.0, "shadows": 0.4, "motion": (-5.0, 3.0, 0.3, 1.0)}),
 }
 
 #: The named condition suite: name -> one-line description.

@@ -13,9 +13,9 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from ..contours import as_points
 from ..errors import ContourError, SceneError
-from ..geometry import signed_area
-from ..model import as_points
+from ..polygons import signed_area
 
 #: The default floor symbol: asymmetric (no rotational or mirror symmetry), straight pieces, no holes,
 #: thick enough (stroke 0.3 of its size) to survive blur at ~40 px. Like the paper's figure 1.
@@ -35,7 +35,7 @@ def symbol_outline(symbol: str | Any) -> list[np.ndarray]:
     Parameters
     ----------
     symbol : str or array_like or list of array_like
-        A registered candidate symbol's name (see ``sbplan.plugins.symbol_names()``), one
+        A registered candidate symbol's name (see ``sbplan.registry.symbol_names()``), one
         ``(N, 2)`` polygon, or a list of polygons (outline first, holes after).
 
     Returns
@@ -50,9 +50,9 @@ def symbol_outline(symbol: str | Any) -> list[np.ndarray]:
         Unknown name, or a polygon that is degenerate or not a valid simple polygon.
     """
     if isinstance(symbol, str):
-        from .. import plugins
+        from .. import registry
 
-        symbols = plugins.registry().symbols()
+        symbols = registry.registry().symbols()
         if symbol not in symbols:
             raise SceneError(f"symbol: unknown symbol {symbol!r}; registered: {', '.join(symbols) or 'none'}")
         rings = symbols[symbol].polygon

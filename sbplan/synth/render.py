@@ -19,7 +19,7 @@ from shapely.geometry import Polygon
 
 from ..errors import SceneError
 from .aruco import aruco_pattern
-from .camera import Camera
+from .camera import Camera, motion_matrix, moved_view
 from .conditions import Effects, condition_effects
 from .floor import FloorSpec, SceneSpec, rings_centroid
 from .obstacles import coverage, outline, texture, window
@@ -95,7 +95,8 @@ def _rngs(seed: int, n: int, *tag: int) -> list[np.random.Generator]:
 
 # -- lighting and camera -----------------------------------------------------------------------
 def _expose(refl: np.ndarray, effects: Effects, floor: FloorSpec, cam: Camera, rng_light: np.random.Generator,
-            rng_noise: np.random.Generator, obstacle_alpha: np.ndarray | None) -> tuple[np.ndarray, dict]:
+            rng_noise: np.random.Generator, obstacle_alpha: np.ndarray | None,
+            motion: np.ndarray | None = None) -> tuple[np.ndarray, dict]:
     h, w = refl.shape
     pitch = float(np.mean(floor.pitch_px))
     draws: dict = {}
@@ -141,7 +142,7 @@ def _expose(refl: np.ndarray, effects: Effects, floor: FloorSpec, cam: Camera, r
             np.maximum(glare, np.clip((1.0 - r2) * 2.5, 0, 1) ** 1.5, out=glare)
             draws["highlights"].append({"centre_floor_px": [cx, cy], "semi_axes_px": [ax, ax * ratio], "angle_deg": ang})
         img += effects.highlight_strength * glare
-    img = cam.warp(img)
+    img = cam.warp(img) if motion is None else moved_view(img, cam, motion)
     if effects.blur > 0:
         img = cv2.GaussianBlur(img, (0, 0), effects.blur)
     if effects.noise > 0:
@@ -215,10 +216,15 @@ def render_scene(floor: FloorSpec, scene: SceneSpec | None = None, *, seed: int 
         raise SceneError(f"scene: expected a SceneSpec, got {type(scene).__name__}")
     effects = scene.resolved_effects()
     cam = _camera(floor, effects)
-    r_obs, r_tex, r_light, r_noise = _rngs(seed, 4)
+    # spawned streams do not depend on how many are spawned: the first four are what they were
+    # before motion and wear had streams of their own
+    r_obs, r_tex, r_light, r_noise, r_motion, r_wear = _rngs(seed, 6)
     polys, kinds = _place_obstacles(floor, scene, r_obs)
     refl0, footprints = _floor(floor)
     refl = refl0.copy()
+    if effects.wear:
+        _wear(refl, floor, effects.wear, r_wear)
+    motion = _motion(floor, effects, seed, r_motion)
     union_alpha = np.zeros_like(refl) if polys else None
     textures = []
     for poly, kind in zip(polys, kinds):
@@ -235,9 +241,91 @@ def render_scene(floor: FloorSpec, scene: SceneSpec | None = None, *, seed: int 
         sub = refl[y0:y0 + h, x0:x0 + w]
         sub += (tex - sub) * a
         np.maximum(union_alpha[y0:y0 + h, x0:x0 + w], a, out=union_alpha[y0:y0 + h, x0:x0 + w])
-    img, draws = _expose(refl, effects, floor, cam, r_light, r_noise, union_alpha)
-    truth = _truth(floor, scene, effects, cam, footprints, polys, kinds, textures, seed, draws)
+    img, draws = _expose(refl, effects, floor, cam, r_light, r_noise, union_alpha,
+                         None if motion is None else motion_matrix(floor.width, floor.height, motion))
+    truth = _truth(floor, scene, effects, cam, footprints, polys, kinds, textures, seed, draws, motion)
     return img, truth
+
+
+#: What ``vibration = 1`` reaches at most: shift (px), rotation (degrees), zoom (fraction).
+VIBRATION_LIMITS = (8.0, 0.5, 0.01)
+#: Where ``drift = 1`` ends: (dx, dy) px, rotation (degrees), zoom (fraction).
+DRIFT_END = (6.0, -3.0, 0.4, 0.008)
+
+
+def _motion(floor: FloorSpec, effects: Effects, seed: int, rng: np.random.Generator):
+    """The camera's movement since calibration, ``(dx, dy, rotation_deg, scale)``, or None."""
+    dx, dy, rot, scale = effects.motion if effects.motion is not None else (0.0, 0.0, 0.0, 1.0)
+    # drawn whatever the effects, so that vibration does not change with drift and back
+    r, phi = math.sqrt(rng.uniform()), rng.uniform(0, 2 * math.pi)
+    v_rot, v_zoom = rng.uniform(-1, 1), rng.uniform(-1, 1)
+    if effects.vibration:
+        shift, rmax, zmax = (effects.vibration * v for v in VIBRATION_LIMITS)
+        dx, dy = dx + shift * r * math.cos(phi), dy + shift * r * math.sin(phi)
+        rot, scale = rot + rmax * v_rot, scale * (1.0 + zmax * v_zoom)
+    if effects.drift:
+        # the golden ratio spreads consecutive seeds along the path
+        t = effects.drift * ((int(seed) * 0.6180339887498949) % 1.0)
+        ex, ey, er, ez = DRIFT_END
+        dx, dy, rot, scale = dx + t * ex, dy + t * ey, rot + t * er, scale * (1.0 + t * ez)
+    if (dx, dy, rot, scale) == (0.0, 0.0, 0.0, 1.0):
+        return None
+    return dx, dy, rot, scale
+
+
+def _wear(refl: np.ndarray, floor: FloorSpec, amount: float, rng: np.random.Generator) -> None:
+    """Wear ``refl`` (the floor's reflectance, in place): scratches of floor colour across symbols,
+    dark dirt specks, and dark tyre marks along the gaps between symbol rows and columns."""
+    h, w = refl.shape
+    dx, dy = floor.pitch_px
+    size = float(floor.symbol_size)
+    ink = floor.background - floor.contrast
+    centres = floor.centres().reshape(-1, 2)
+    aa = 4  # fractional bits of cv2's antialiased drawing
+
+    def stroke(draw) -> np.ndarray:
+        alpha = np.zeros((h, w), np.float32)
+        draw(alpha)
+        return np.clip(alpha, 0, 1)
+
+    def pt(p) -> tuple[int, int]:
+        return int(round(p[0] * (1 << aa))), int(round(p[1] * (1 << aa)))
+
+    # scratches: straight strokes of bare floor, 1-3 px wide, through about half of the symbols
+    n = int(round(amount * 0.5 * len(centres)))
+    for i in rng.choice(len(centres), size=min(n, len(centres)), replace=False):
+        a = rng.uniform(0, math.pi)
+        half = rng.uniform(0.3, 0.6) * size
+        mid = centres[i] + rng.uniform(-0.2, 0.2, 2) * size
+        d = np.array([math.cos(a), math.sin(a)]) * half
+        width = int(rng.integers(1, 4))
+        alpha = stroke(lambda m: cv2.line(m, pt(mid - d), pt(mid + d), 1.0, width, cv2.LINE_AA, aa))
+        refl += (floor.background - refl) * alpha
+    # dirt specks: small dark dots anywhere, some on symbols' edges
+    n = int(round(amount * 2 * len(centres)))
+    alpha = np.zeros((h, w), np.float32)
+    for _ in range(n):
+        near = centres[int(rng.integers(len(centres)))] + rng.uniform(-0.5, 0.5, 2) * (dx, dy)
+        cv2.circle(alpha, pt(near), int(round(rng.uniform(0.5, 1.5) * (1 << aa))), 1.0, -1, cv2.LINE_AA, aa)
+    refl += (ink - refl) * np.clip(alpha, 0, 1) * 0.8
+    # tyre marks: long smooth dark bands, 4-10 px wide, 20-45 % darker, along the gaps between symbols
+    gap_x = [c + dx / 2 for c in floor.col_x[:-1]]
+    gap_y = [r + dy / 2 for r in floor.row_y[:-1]]
+    n = int(round(amount * 3))
+    for _ in range(n):
+        if not gap_x and not gap_y:
+            break
+        horizontal = bool(rng.integers(2)) if gap_x and gap_y else bool(gap_y)
+        gaps = gap_y if horizontal else gap_x
+        at = gaps[int(rng.integers(len(gaps)))]
+        length = w if horizontal else h
+        t = np.linspace(0, length, 64)
+        wobble = 0.12 * (dy if horizontal else dx) * np.sin(t / length * rng.uniform(1, 3) * math.pi + rng.uniform(0, 6))
+        pts = np.c_[t, at + wobble] if horizontal else np.c_[at + wobble, t]
+        width = int(rng.integers(4, 11))
+        alpha = stroke(lambda m: cv2.polylines(m, [np.rint(pts * (1 << aa)).astype(np.int32)], False, 1.0, width,
+                                               cv2.LINE_AA, aa))
+        refl *= 1.0 - rng.uniform(0.2, 0.45) * alpha
 
 
 def _place_obstacles(floor: FloorSpec, scene: SceneSpec, rng: np.random.Generator):
@@ -281,7 +369,7 @@ def _densify(p: np.ndarray, step: float) -> np.ndarray:
     return np.concatenate([p[i] + (nxt[i] - p[i]) * (np.arange(n[i])[:, None] / n[i]) for i in range(len(p))])
 
 
-def _truth(floor, scene, effects, cam, footprints, polys, kinds, textures, seed, draws) -> GroundTruth:
+def _truth(floor, scene, effects, cam, footprints, polys, kinds, textures, seed, draws, motion) -> GroundTruth:
     rows, cols = floor.rows, floor.cols
     syms = np.array([Polygon(f[0], f[1:]) for f in footprints], dtype=object)
     overlap = np.zeros(len(syms))
@@ -305,10 +393,17 @@ def _truth(floor, scene, effects, cam, footprints, polys, kinds, textures, seed,
         for i, c in enumerate(grid):
             centres[i], _ = rings_centroid([cam.floor_to_image(r + c) for r in dense])
         obstacles = [cam.floor_to_image(_densify(p, 3.0)) for p in polys]
+    camera = {"tilt_deg": list(cam.tilt), "distortion_k1": cam.distortion, "homography": cam.h.tolist()}
+    if motion is not None:
+        m = motion_matrix(floor.width, floor.height, motion)
+        centres = centres @ m[:2, :2].T + m[:2, 2]
+        obstacles = [p @ m[:2, :2].T + m[:2, 2] for p in obstacles]
+        camera["motion"] = {"shift_px": [motion[0], motion[1]], "rotation_deg": motion[2], "scale": motion[3],
+                            "matrix": m.tolist()}
     params = {
         "seed": int(seed), "floor": floor.to_dict(), "scene": scene.to_dict(), "effects": effects.to_dict(),
         "occupied_fraction": scene.occupied_fraction, "near_px": scene.near_px,
-        "camera": {"tilt_deg": list(cam.tilt), "distortion_k1": cam.distortion, "homography": cam.h.tolist()},
+        "camera": camera,
         "image_size": [floor.width, floor.height], "lighting_draws": draws,
         "cell_states": {"occupied": OCCUPIED, "free": FREE, "ambiguous": AMBIGUOUS},
     }

@@ -30,9 +30,9 @@ def display_path(path: str | os.PathLike | None) -> str:
 
 def stage_names() -> dict[str, list[str]]:
     """The installed stage names of every selectable kind, from the plugin registry."""
-    from .. import plugins
+    from .. import registry
 
-    return {kind: getattr(plugins, f"{kind}_names")() for kind in STAGE_KINDS}
+    return {kind: getattr(registry, f"{kind}_names")() for kind in STAGE_KINDS}
 
 
 def square(centre: Any, side: float) -> np.ndarray:
@@ -40,6 +40,14 @@ def square(centre: Any, side: float) -> np.ndarray:
     x, y = (float(v) for v in centre)
     h = side / 2
     return np.array([[x - h, y - h], [x + h, y - h], [x + h, y + h], [x - h, y + h]])
+
+
+def obstacle_arrays(detection: Any) -> list[np.ndarray]:
+    """A detection's obstacles as the planner takes them (``detection_obstacles``), in its order,
+    as (M, 2) arrays ``(x, y)`` metres (what the map view draws)."""
+    from ..planning import detection_obstacles
+
+    return [np.asarray(p.exterior.coords)[:-1] for p in detection_obstacles(detection).polygons]
 
 
 def point_along(waypoints: np.ndarray, fraction: float) -> np.ndarray:
@@ -151,7 +159,7 @@ class Session:
 
     def calibrate(self, stages: dict[str, str]) -> Any:
         """Calibrate on the loaded reference with the chosen stages (kind -> name)."""
-        from ..calibration import calibrate
+        from ..detection.calibration import calibrate
         from ..errors import InputError
 
         if self.reference is None:
@@ -164,7 +172,7 @@ class Session:
         return cal
 
     def load_calibration(self, path: str | os.PathLike) -> Any:
-        from ..calibration import load_calibration
+        from ..detection.calibration import load_calibration
 
         self.calibration = load_calibration(path)
         return self.calibration
@@ -196,11 +204,7 @@ class Session:
 
     def obstacles_m(self) -> list[np.ndarray]:
         """The detection's obstacles in metres, (M, 2) ``(x, y)`` each (what the planner avoids)."""
-        from ..planning import detection_obstacles
-
-        if self.detection is None:
-            return []
-        return [np.asarray(p.exterior.coords)[:-1] for p in detection_obstacles(self.detection).polygons]
+        return [] if self.detection is None else obstacle_arrays(self.detection)
 
     def plan(self) -> Any:
         """Plan from start to goal around the detected obstacles and the dynamic ones."""
@@ -230,4 +234,4 @@ class Session:
     def new_obstacles_in(self, detection: Any) -> list[np.ndarray]:
         """The MARs of ``detection``'s obstacles that cover a cell the current detection left free."""
         known = set(self.detection.occupied_cells) if self.detection is not None else set()
-        return [ob.mar_m for ob in detection.obstacles if set(map(tuple, ob.cells)) - known]
+        return [a for ob, a in zip(detection.obstacles, obstacle_arrays(detection)) if set(map(tuple, ob.cells)) - known]

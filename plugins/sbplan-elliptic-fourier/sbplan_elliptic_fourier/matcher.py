@@ -11,9 +11,9 @@ from typing import ClassVar, Sequence
 
 import numpy as np
 
+from sbplan.contours import as_points
+from sbplan.contracts import DescriptorMatcher, option
 from sbplan.errors import ContourError, InputError
-from sbplan.model import as_points
-from sbplan.stages import DescriptorMatcher, option
 
 __all__ = ["EllipticFourierMatcher", "elliptic_coefficients", "normalize_coefficients", "elliptic_descriptors"]
 

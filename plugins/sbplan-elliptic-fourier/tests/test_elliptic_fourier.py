@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sbplan import plugins
+from sbplan import registry as plugins
 from sbplan.errors import ContourError, InputError
 from sbplan.testing import MatcherContract, calibrated_pipeline, sample_outlines, tiny_floor  # noqa: F401  (fixtures)
 from sbplan_elliptic_fourier import EllipticFourierMatcher, elliptic_coefficients

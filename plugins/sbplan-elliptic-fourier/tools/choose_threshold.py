@@ -13,7 +13,7 @@ import numpy as np
 
 # run from a checkout without installing the plugin
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))
-from sbplan import plugins
+from sbplan import registry as plugins
 from sbplan_elliptic_fourier import EllipticFourierMatcher
 from sbplan.synth import symbol_outline
 ext=plugins.extractor('opencv'); apx=plugins.approximator('douglas-peucker')

@@ -30,7 +30,7 @@ class CalibrationScreen(JobScreen):
 
     def compose(self) -> ComposeResult:
         s = self.session
-        from ...calibration import DEFAULT_STAGES
+        from ...detection.calibration import DEFAULT_STAGES
 
         self._names = names = stage_names()
         yield Header()

@@ -107,12 +107,12 @@ class DetectionScreen(JobScreen):
         det, image = s.detection, s.scene
 
         def job():
-            from ... import export
+            from ...detection import exports
 
-            export.write_overlay(folder / "overlay.png", image, det)
-            export.write_occupancy(folder / "occupancy.png", det)
-            export.write_geojson(folder / "obstacles.geojson", det)
-            export.write_nav2(folder / "nav2", det)
+            exports.write_overlay(folder / "overlay.png", image, det)
+            exports.write_occupancy(folder / "occupancy.png", det)
+            exports.write_geojson(folder / "obstacles.geojson", det)
+            exports.write_nav2(folder / "nav2", det)
             return folder
 
         self.start_job(f"exporting to {folder}", job,
@@ -121,7 +121,7 @@ class DetectionScreen(JobScreen):
 
     # -- view ------------------------------------------------------------------------------------
     def _show(self) -> None:
-        from ...export import overlay_image
+        from ...detection.exports import overlay_image
 
         s = self.session
         det = s.detection

@@ -50,7 +50,7 @@ class RouteScreen(JobScreen):
 
     def compose(self) -> ComposeResult:
         s = self.session
-        from ... import plugins
+        from ... import registry
 
         self._scene_seen = s.scene_path
         yield Header()
@@ -65,7 +65,7 @@ class RouteScreen(JobScreen):
                 yield Label("Goal x, y (m)", classes="heading")
                 yield Input(self._fmt(s.goal), placeholder="x, y", id="goal")
                 yield Label("Planner", classes="heading")
-                names = plugins.planner_names()
+                names = registry.planner_names()
                 yield Select([(n, n) for n in names], value=s.planner if s.planner in names else Select.NULL,
                              id="planner", compact=True)
                 yield Button("Plan (p)", id="plan", variant="primary", compact=True)

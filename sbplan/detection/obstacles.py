@@ -12,7 +12,7 @@ import cv2
 import numpy as np
 import shapely
 
-from .model import as_points
+from ..contours import as_points
 
 
 @dataclass(frozen=True, eq=False)
@@ -98,7 +98,7 @@ def find_obstacles(occupancy: np.ndarray, occupied: np.ndarray, grid, *, to_worl
         0 where occupied, 255 elsewhere.
     occupied : ndarray of shape (rows, cols), bool
         The occupied cells (to list each obstacle's cells).
-    grid : sbplan.grid.Grid
+    grid : sbplan.detection.grid.Grid
     to_world : callable, optional
         Maps pixel points (N, 2) to world metres (N, 2); when given, metric outlines and MARs are
         added (the metric MAR is fitted to the metric outline, so it is a true rectangle on the floor

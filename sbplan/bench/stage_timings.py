@@ -72,7 +72,7 @@ def _time(fn: Callable[[], Any], repeat: int) -> dict[str, float]:
 
 def measure(*, repeat: int = 30, seed: int = 0) -> dict[str, Any]:
     """Run the benchmark and return its results as a dict (what ``--json`` prints)."""
-    from sbplan import plugins
+    from sbplan import registry
     from sbplan.errors import InputError
 
     if repeat < 1:
@@ -82,10 +82,10 @@ def measure(*, repeat: int = 30, seed: int = 0) -> dict[str, Any]:
     binary = binarize(gray)
     rows: list[dict[str, Any]] = []
 
-    reference = plugins.extractor("opencv").extract(binary)
+    reference = registry.extractor("opencv").extract(binary)
     outers = sorted((c for c in reference if not c.is_hole), key=len, reverse=True)[:N_SYMBOLS]
-    for name in plugins.extractor_names():
-        ex = plugins.extractor(name)
+    for name in registry.extractor_names():
+        ex = registry.extractor(name)
         count = len(ex.extract(binary))
         rows.append({"stage": "extractor", "name": name, "work": f"1280x960 frame -> {count} contours",
                      **_time(lambda: ex.extract(binary), repeat)})
@@ -95,8 +95,8 @@ def measure(*, repeat: int = 30, seed: int = 0) -> dict[str, Any]:
                          **_time(lambda: fast.extract(binary), repeat)})
 
     polygons: dict[str, list[np.ndarray]] = {}
-    for name in plugins.approximator_names():
-        ap = plugins.approximator(name)
+    for name in registry.approximator_names():
+        ap = registry.approximator(name)
         polygons[name] = [ap.approximate(c) for c in outers]
         rows.append({"stage": "approximator", "name": name, "work": f"{len(outers)} contours",
                      **_time(lambda: [ap.approximate(c) for c in outers], repeat)})
@@ -104,8 +104,8 @@ def measure(*, repeat: int = 30, seed: int = 0) -> dict[str, Any]:
     if polys is None:  # no approximator registered: describe the pixel outlines themselves
         polys = [c.points.astype(np.float64) for c in outers]
 
-    for name in plugins.matcher_names():
-        m = plugins.matcher(name)
+    for name in registry.matcher_names():
+        m = registry.matcher(name)
         desc = m.describe_many(polys)
         ref = desc[:1]
         rows.append({"stage": "matcher", "name": f"{name} describe_many", "work": f"{len(polys)} polygons",

@@ -15,9 +15,9 @@ def add_stage_arguments(parser: argparse.ArgumentParser) -> None:
 
 def stage_choices(args: argparse.Namespace) -> dict[str, str]:
     """The stages named on the command line, validated against the registry (clear error if unknown)."""
-    from .. import plugins
+    from .. import registry
 
     chosen = {k: getattr(args, k) for k in STAGE_KINDS if getattr(args, k, None)}
     for kind, name in chosen.items():
-        plugins.registry().info(kind, name)  # raises UnknownStageError listing the installed names
+        registry.registry().info(kind, name)  # raises UnknownStageError listing the installed names
     return chosen

@@ -14,8 +14,8 @@ import bisect
 import cv2
 import numpy as np
 
-from .errors import InputError
-from .geometry import resample_xy
+from ..errors import InputError
+from ..polygons import resample_xy
 
 #: Points per outline at which the deviation is measured.
 SAMPLES = 64
@@ -268,6 +268,11 @@ EDGE_MIN_REFERENCE = 0.25
 #: <= 0.17); 0.5 would leave one free symbol of seed 11 called occupied.
 EDGE_KEEP = 0.4
 
+#: Consecutive edge points (about 2 px apart) a thin scratch of floor colour may break where it
+#: crosses a symbol's outline (1 to 3 px wide, crossing at 45 degrees or more) without the cell
+#: being called occupied; an obstacle over 2 % of a symbol breaks a longer run of its outline.
+EDGE_SCRATCH_POINTS = 4
+
 
 def edge_probes(polygons: list[np.ndarray], depth: float = EDGE_DEPTH_PX,
                 samples: int = EDGE_SAMPLES) -> tuple[np.ndarray, np.ndarray]:
@@ -321,18 +326,123 @@ def edge_factors(reference_contrast: np.ndarray, keep: float = EDGE_KEEP,
     return factors.astype(np.float32)
 
 
-def edges_intact(gray: np.ndarray, x: np.ndarray, y: np.ndarray, factors: np.ndarray) -> np.ndarray:
-    """Which outlines still show their edge all around: at every probed point of each, the grey
-    level inside is below its factor (:func:`edge_factors`) times the level outside, i.e. the
-    point kept more than ``EDGE_KEEP`` of the relative step the reference showed there.
+def edge_kept(gray: np.ndarray, x: np.ndarray, y: np.ndarray, factors: np.ndarray) -> np.ndarray:
+    """At each probed point of each outline, whether the grey level inside is below its factor
+    (:func:`edge_factors`) times the level outside, i.e. the point kept more than ``EDGE_KEEP`` of
+    the relative step the reference showed there (points not probed always keep it).
+
+    ``gray`` (H, W) uint8; ``x``, ``y`` (n, 2, S) from :func:`edge_probes`; ``factors`` (n, S)
+    for the same outlines. Shape (n, S), bool.
+    """
+    if not len(x):
+        return np.zeros((0, x.shape[-1]), bool)
+    v = _edge_levels(_gray_u8(gray), x, y)
+    return v[:, 0] < v[:, 1] * factors
+
+
+def intact_edges(kept: np.ndarray, *, max_break: int = 0) -> np.ndarray:
+    """Which outlines show their edge all around, from :func:`edge_kept` (n, S).
+
+    With ``max_break`` > 0, runs of at most that many consecutive broken points (around the closed
+    outline) are forgiven: where a thin scratch of floor colour crosses the outline the step is
+    gone over its width only, while an obstacle over a real part of the outline breaks a longer run.
+    Shape (n,), bool.
+    """
+    intact = kept.all(axis=1)
+    if max_break > 0 and not intact.all():
+        # a broken run longer than max_break has max_break + 1 broken points in a row somewhere:
+        # look for that many in a row, the outline's start wrapped round to its end
+        broken = ~kept[~intact]
+        wrapped = np.concatenate([broken, broken[:, :max_break]], axis=1)
+        run = wrapped[:, :broken.shape[1]].copy()
+        for k in range(1, max_break + 1):
+            run &= wrapped[:, k:k + broken.shape[1]]
+        intact[~intact] = ~run.any(axis=1)
+    return intact
+
+
+def edges_intact(gray: np.ndarray, x: np.ndarray, y: np.ndarray, factors: np.ndarray, *,
+                 max_break: int = 0) -> np.ndarray:
+    """Which outlines still show their edge all around: :func:`intact_edges` of :func:`edge_kept`.
 
     ``gray`` (H, W) uint8; ``x``, ``y`` (n, 2, S) from :func:`edge_probes`; ``factors`` (n, S)
     for the same outlines. Shape (n,), bool.
     """
     if not len(x):
         return np.zeros(0, bool)
-    v = _edge_levels(_gray_u8(gray), x, y)
-    return (v[:, 0] < v[:, 1] * factors).all(axis=1)
+    return intact_edges(edge_kept(gray, x, y, factors), max_break=max_break)
+
+
+#: The widest scratch (pixels) the repair below takes for wear: a grey opening with a square one
+#: pixel wider removes bright lines up to this width.
+SCRATCH_WIDTH_PX = 3
+#: How deep (pixels) inside the reference outline a bright thin line must reach to be taken for a
+#: scratch across the symbol rather than a sliver of an obstacle along its edge.
+SCRATCH_DEPTH_PX = 4
+#: A pixel belongs to a bright thin line when the opening lowers it by this fraction of the
+#: symbol's ink-to-floor step.
+SCRATCH_LEVEL = 0.3
+
+
+def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarray, y: np.ndarray,
+                       factors: np.ndarray, *, max_break: int = 0) -> np.ndarray:
+    """:func:`edges_intact` after the thin scratches across each symbol are painted over.
+
+    Wear scratches a printed symbol: a thin line of floor colour crosses the ink from edge to edge,
+    and where it leaves the ink at a shallow angle it breaks a long run of the outline's edge, as
+    an obstacle over a sliver of the symbol does. What tells them apart is the rest of the line: a
+    scratch runs on into the symbol's interior, a sliver does not. In a window around each outline,
+    a grey opening (a square ``SCRATCH_WIDTH_PX + 2`` wide) removes bright lines up to
+    ``SCRATCH_WIDTH_PX`` wide; the pixels it lowers by ``SCRATCH_LEVEL`` of the symbol's step are
+    thin bright features; when one of them reaches ``SCRATCH_DEPTH_PX`` inside the outline the
+    symbol is scratched, all of them take the opened value, and the edge is read again.
+
+    Parameters
+    ----------
+    gray : ndarray (H, W), uint8
+    outlines : list of ndarray (K, 2)
+        Each symbol's reference outline ``(x, y)`` where the frame shows it.
+    x, y, factors : as :func:`edges_intact`, for the same outlines.
+
+    Returns
+    -------
+    ndarray (n,), bool
+    """
+    gray = _gray_u8(gray)
+    h, w = gray.shape
+    out = np.zeros(len(outlines), bool)
+    side = 2 * SCRATCH_WIDTH_PX + 1
+    square = cv2.getStructuringElement(cv2.MORPH_RECT, (side, side))
+    deep = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * SCRATCH_DEPTH_PX + 1, 2 * SCRATCH_DEPTH_PX + 1))
+    for i, outline in enumerate(outlines):
+        pad = side + 2
+        x0 = max(int(np.floor(min(outline[:, 0].min(), x[i].min()))) - pad, 0)
+        y0 = max(int(np.floor(min(outline[:, 1].min(), y[i].min()))) - pad, 0)
+        x1 = min(int(np.ceil(max(outline[:, 0].max(), x[i].max()))) + pad + 1, w)
+        y1 = min(int(np.ceil(max(outline[:, 1].max(), y[i].max()))) + pad + 1, h)
+        if x1 - x0 < 2 * side or y1 - y0 < 2 * side:
+            continue
+        patch = gray[y0:y1, x0:x1]
+        v = _edge_levels(patch, x[i:i + 1] - x0, y[i:i + 1] - y0)[0].astype(np.float32)
+        step = float(np.median(v[1] - v[0]))
+        if step <= 0:
+            continue
+        opened = cv2.morphologyEx(patch, cv2.MORPH_OPEN, square)
+        thin = (cv2.subtract(patch, opened) > SCRATCH_LEVEL * step).astype(np.uint8)
+        inside = np.zeros_like(thin)
+        cv2.fillPoly(inside, [np.rint((outline - (x0, y0)) * 16).astype(np.int32)], 1, cv2.LINE_8, shift=4)
+        core = cv2.erode(inside, deep)
+        if not ((core > 0) & (thin > 0)).any():
+            continue
+        # the symbol is scratched: every thin bright line in its window is taken for wear (a
+        # scratch leaves the ink in pieces: the piece that reaches the interior vouches for the
+        # pieces beside the edge)
+        # ... with the antialiased pixels along them, which fall short of the level
+        scratch = cv2.dilate(thin, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))) > 0
+        repaired = patch.copy()
+        repaired[scratch] = opened[scratch]
+        out[i] = edges_intact(repaired, x[i:i + 1] - x0, y[i:i + 1] - y0, factors[i:i + 1], max_break=max_break)[0]
+    return out
 
 
 def _gray_u8(gray: np.ndarray) -> np.ndarray:

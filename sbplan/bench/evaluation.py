@@ -11,7 +11,7 @@ from typing import Any, Iterator
 
 import numpy as np
 
-from .errors import InputError
+from ..errors import InputError
 
 
 @dataclass(frozen=True)
@@ -68,7 +68,7 @@ def condition_scenes(condition: str, *, scenes: int = 5, size: tuple[int, int] =
 
     The reference shares the scenes' camera (tilt, distortion) and is lit with base lighting.
     """
-    from .synth import FloorSpec, SceneSpec, render_reference, render_scene
+    from ..synth import FloorSpec, SceneSpec, render_reference, render_scene
 
     width, height = size
     cols, rows = grid

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from .errors import CalibrationError
+from ..errors import CalibrationError
 
 
 @dataclass(frozen=True, eq=False)
@@ -35,7 +35,7 @@ class Grid:
     def shape(self) -> tuple[int, int]:
         return self.rows, self.cols
 
-    @property
+    @functools.cached_property
     def pitch_px(self) -> tuple[float, float]:
         """Median distance between neighbouring centres along a row (dx) and a column (dy)."""
         c = self.centres_px

@@ -1,264 +1,20 @@
-"""The plugin author's test kit: pytest fixtures and a contract test suite for every stage kind.
-
-Use it from a test module, no conftest needed::
-
-    from sbplan.testing import MatcherContract, calibrated_pipeline, register_stage, tiny_floor  # noqa: F401
-
-    class TestMyMatcher(MatcherContract):
-        stage_class = MyMatcher          # or: stage_name = "mine" (looked up through the registry)
-
-    def test_in_the_pipeline(calibrated_pipeline, register_stage):
-        register_stage(MyMatcher)
-        detection = calibrated_pipeline.detect(matcher="mine")
-        assert calibrated_pipeline.cell_errors(detection) == 0
-
-Importing a fixture into a test module makes pytest use it there. The same fixtures are available
-everywhere when this module is loaded as a pytest plugin (``pytest -p sbplan.testing``).
-
-Fixtures
---------
-tiny_floor : TinyFloor (session scope)
-    A rendered 320 x 240 floor with 4 x 3 symbols: the empty reference, one scene with obstacles,
-    and the scene's ground truth.
-calibrated_pipeline : CalibratedPipeline (session scope)
-    The calibration of ``tiny_floor`` with the default stages, and ``detect(**stages)``.
-register_stage : callable (function scope)
-    ``register_stage(cls)`` registers a stage class in the process-wide registry for one test.
-
-Contract suites
----------------
-:class:`BinarizerContract`, :class:`ExtractorContract`, :class:`ApproximatorContract`,
-:class:`MatcherContract`, :class:`MapperContract`, :class:`PlannerContract`: subclass one in a
-module whose name pytest collects (``class TestX(MatcherContract)``) and set ``stage_class`` (with
-``stage_options``) or ``stage_name``, or override the ``stage`` fixture. Every ``check_*`` function
-is also usable on its own; :func:`check_stage` runs the whole contract of a stage's kind and
-raises ``AssertionError`` on the first violation.
-
-Pictures and shapes used by the checks are made here with numpy and OpenCV; nothing is downloaded.
-"""
+"""The contract checks of every stage kind as plain functions (no pytest needed): each raises
+``AssertionError`` naming the stage on the first violation; :func:`check_stage` runs a kind's
+whole contract. The shapes and pictures they use are made here with numpy and OpenCV."""
 
 from __future__ import annotations
 
-import contextlib
-import functools
-import os
-from dataclasses import dataclass
-from typing import Any, Callable, ClassVar, Iterator
+from typing import Any, Callable
 
 import numpy as np
-import pytest
 
-from . import plugins
-from .errors import InputError, PlanningError, PluginError
-from .geometry import signed_area
-from .model import FREEMAN_STEPS, Contour
-from .stages import (Binarizer, ContourApproximator, ContourExtractor, DescriptorMatcher, OccupancyMapper,
-                     Planner, Stage)
-
-__all__ = [
-    "ApproximatorContract", "BinarizerContract", "CalibratedPipeline", "ExtractorContract", "MapperContract",
-    "MatcherContract", "PlannerContract", "StageContract", "TinyFloor", "calibrated_pipeline", "check_stage",
-    "install_plugin", "make_calibrated_pipeline", "make_tiny_floor", "register_stage", "registered", "sample_outlines", "tiny_floor",
-]
-
-
-# -- the tiny floor and the calibrated pipeline -------------------------------------------------
-
-@dataclass(frozen=True, eq=False)
-class TinyFloor:
-    """A small rendered floor (see :func:`make_tiny_floor`).
-
-    Attributes
-    ----------
-    spec : sbplan.synth.FloorSpec
-    reference : ndarray of shape (H, W), uint8
-        The empty floor, every symbol visible.
-    scene : ndarray of shape (H, W), uint8
-        The same floor with obstacles.
-    truth : sbplan.synth.GroundTruth
-        ``truth.cells[row, col]``: 1 occupied, 0 free, -1 ambiguous (a sliver covered).
-    """
-
-    spec: Any
-    reference: np.ndarray
-    scene: np.ndarray
-    truth: Any
-
-    @property
-    def occupied(self) -> np.ndarray:
-        """Truly occupied cells, shape (rows, cols), bool, ``[row, col]``."""
-        return self.truth.cells == 1
-
-    @property
-    def ambiguous(self) -> np.ndarray:
-        """Cells whose symbol is covered by a sliver only: either answer is acceptable."""
-        return self.truth.cells == -1
-
-
-@functools.lru_cache(maxsize=8)
-def make_tiny_floor(*, seed: int = 3, n_obstacles: int = 2, condition: str = "clean", width: int = 320,
-                    height: int = 240, cols: int = 4, rows: int = 3, pitch: tuple[float, float] = (78.6, 77.2)) -> TinyFloor:
-    """Render a small floor and one scene on it; cached, the arrays are read-only.
-
-    Parameters
-    ----------
-    seed : int
-        Seed of the scene (obstacles, noise). The reference uses seed 0.
-    n_obstacles : int
-    condition : str
-        A name of ``sbplan.synth.CONDITIONS`` (``clean``, ``shadows``, ``highlights``, ...).
-    width, height, cols, rows : int
-        Image size in pixels and symbol grid.
-    pitch : (dx, dy)
-        Symbol spacing in pixels. Not a whole number on purpose: every symbol then falls on the
-        pixel grid differently, so the reference's symbols are not pixel-identical copies (as on
-        a real floor) and a calibration sees their true spread.
-    """
-    from .synth import FloorSpec, SceneSpec, render_reference, render_scene
-
-    spec = FloorSpec(width=width, height=height, cols=cols, rows=rows, pitch=pitch)
-    reference = render_reference(spec, seed=0)
-    scene, truth = render_scene(spec, SceneSpec(n_obstacles=n_obstacles, condition=condition), seed=seed)
-    for a in (reference, scene):
-        a.setflags(write=False)
-    return TinyFloor(spec, reference, scene, truth)
-
-
-@dataclass(frozen=True, eq=False)
-class CalibratedPipeline:
-    """A calibration of a :class:`TinyFloor` and detection on its scene."""
-
-    floor: TinyFloor
-    calibration: Any
-
-    def detect(self, image: np.ndarray | None = None, **stages: Any):
-        """Detection on ``image`` (default: the floor's scene) with stage overrides by name or instance.
-
-        A matcher or approximator other than the calibrated one gets its reference descriptor and
-        threshold derived again from the calibration's reference symbols.
-        """
-        from .detection import Detector
-
-        return Detector(self.calibration, **stages)(self.floor.scene if image is None else image)
-
-    def cell_errors(self, detection) -> int:
-        """Cells where ``detection`` disagrees with the ground truth, ambiguous cells not counted."""
-        wrong = detection.occupied != self.floor.occupied
-        return int((wrong & ~self.floor.ambiguous).sum())
-
-
-def make_calibrated_pipeline(floor: TinyFloor | None = None, **stages: Any) -> CalibratedPipeline:
-    """Calibrate on ``floor.reference`` (default: :func:`make_tiny_floor`) with optional stages."""
-    from .calibration import calibrate
-
-    floor = floor or make_tiny_floor()
-    return CalibratedPipeline(floor, calibrate(floor.reference, **stages))
-
-
-@pytest.fixture(scope="session")
-def tiny_floor() -> TinyFloor:
-    """A rendered 320 x 240 floor of 4 x 3 symbols with a scene of two obstacles and its truth."""
-    return make_tiny_floor()
-
-
-@pytest.fixture(scope="session")
-def calibrated_pipeline(tiny_floor: TinyFloor) -> CalibratedPipeline:
-    """The default pipeline calibrated on ``tiny_floor``; ``.detect(matcher=...)`` runs detection."""
-    return make_calibrated_pipeline(tiny_floor)
-
-
-@contextlib.contextmanager
-def registered(*classes: type[Stage], origin: str = "test") -> Iterator[None]:
-    """Register stage classes in the process-wide registry for the duration of a ``with`` block.
-
-    A stage already registered under the same kind and name is replaced and put back afterwards.
-    """
-    reg = plugins.registry()
-    previous = []
-    try:
-        for cls in classes:
-            try:
-                old = reg.info(cls.kind, cls.name)
-            except (PluginError, AttributeError):
-                old = None
-            reg.add(cls, origin=origin, replace=True)
-            previous.append((cls.kind, cls.name, old))
-        yield
-    finally:
-        for kind, name, old in reversed(previous):
-            reg.remove(kind, name)
-            if old is not None:
-                reg.add(old.cls, origin=old.origin, replace=True)
-
-
-@pytest.fixture
-def register_stage() -> Iterator[Callable[..., type[Stage]]]:
-    """``register_stage(cls, origin="test")``: make ``cls`` findable by name (``sbplan.plugins``,
-    ``calibrate``, ``detect``, ``plan``) until the end of the test."""
-    with contextlib.ExitStack() as stack:
-        def add(cls: type[Stage], *, origin: str = "test") -> type[Stage]:
-            stack.enter_context(registered(cls, origin=origin))
-            return cls
-
-        yield add
-
-
-# -- installing a plugin project for subprocess tests ------------------------------------------
-
-def install_plugin(project: str | os.PathLike, target: str | os.PathLike) -> str:
-    """Install a plugin project into the folder ``target``, offline, for use on ``PYTHONPATH``.
-
-    Runs ``pip install --no-deps --no-build-isolation --no-index --target`` when the installed
-    setuptools can build a wheel without downloading anything (setuptools >= 70.1, or the
-    ``wheel`` package); otherwise lays the project out exactly as pip would: its packages (from
-    ``[tool.setuptools] packages``) and a ``<name>-<version>.dist-info`` with ``METADATA`` and the
-    ``entry_points.txt`` of its ``[project.entry-points]``. Either way sbplan finds the plugin only
-    through its entry point. The current environment is not touched.
-
-    Parameters
-    ----------
-    project : path
-        Folder with the plugin's ``pyproject.toml`` (setuptools backend).
-    target : path
-        Folder to install into (created if missing).
-
-    Returns
-    -------
-    str
-        ``"pip"`` or ``"layout"``: which way was used.
-    """
-    import importlib.util
-    import shutil
-    import subprocess
-    import sys
-    import tomllib
-    from pathlib import Path
-
-    project, target = Path(project), Path(target)
-    target.mkdir(parents=True, exist_ok=True)
-    import setuptools
-
-    version = tuple(int(x) for x in setuptools.__version__.split(".")[:2])
-    if version >= (70, 1) or importlib.util.find_spec("wheel") is not None:
-        subprocess.run([sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--no-build-isolation",
-                        "--no-index", "--target", str(target), str(project)], check=True, capture_output=True)
-        return "pip"
-    meta = tomllib.loads((project / "pyproject.toml").read_text(encoding="utf-8"))
-    proj = meta["project"]
-    for package in meta["tool"]["setuptools"]["packages"]:
-        rel = package.replace(".", "/")
-        shutil.copytree(project / rel, target / rel, ignore=shutil.ignore_patterns("__pycache__"), dirs_exist_ok=True)
-    dist = target / f"{proj['name'].replace('-', '_')}-{proj['version']}.dist-info"
-    dist.mkdir(exist_ok=True)
-    (dist / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {proj['name']}\nVersion: {proj['version']}\n",
-                                   encoding="utf-8")
-    lines = []
-    for group, entries in proj.get("entry-points", {}).items():
-        lines.append(f"[{group}]")
-        lines += [f"{k} = {v}" for k, v in entries.items()]
-    (dist / "entry_points.txt").write_text("\n".join(lines) + "\n", encoding="utf-8")
-    return "layout"
-
+from .. import registry
+from ..contours import FREEMAN_STEPS, Contour
+from ..contracts import (Binarizer, ContourApproximator, ContourExtractor, DescriptorMatcher, OccupancyMapper,
+                         Planner, Stage)
+from ..errors import InputError, PlanningError
+from ..polygons import signed_area
+from .pipeline import make_tiny_floor
 
 # -- shapes and pictures the checks use ---------------------------------------------------------
 
@@ -287,9 +43,6 @@ def sample_outlines() -> dict[str, np.ndarray]:
         "blob": np.c_[r * np.cos(u), -r * np.sin(u)] * 30,
     }
     return {k: _ccw(v) for k, v in shapes.items()}
-
-
-
 
 
 def _ccw(p: np.ndarray) -> np.ndarray:
@@ -334,7 +87,7 @@ def check_declaration(stage: Stage) -> None:
     """The class has a kind, a name, a one-line description, and options with help texts that
     survive a round trip through ``config()`` and ``from_strings``."""
     cls = type(stage)
-    assert isinstance(stage, Stage) and cls.kind in plugins.KINDS, f"{cls.__qualname__}: not a stage contract subclass"
+    assert isinstance(stage, Stage) and cls.kind in registry.KINDS, f"{cls.__qualname__}: not a stage contract subclass"
     assert isinstance(cls.name, str) and cls.name and cls.name == cls.name.strip(), f"{cls.__qualname__}: needs a name"
     assert " " not in cls.name, f"{cls.kind} name {cls.name!r}: names are typed on the command line, no spaces"
     desc = cls.description or (cls.__doc__ or "").strip()
@@ -356,7 +109,7 @@ def check_declaration(stage: Stage) -> None:
 
 def check_registered(stage: Stage) -> None:
     """The stage is found by name in the process-wide registry, as the same class."""
-    info = plugins.registry().info(stage.kind, stage.name)
+    info = registry.registry().info(stage.kind, stage.name)
     assert info.cls is type(stage), f"{stage.kind} {stage.name!r}: the registry holds {info.cls!r}"
 
 
@@ -387,7 +140,7 @@ def check_binarizer_bands(stage: Binarizer) -> None:
     """``binarize_bands`` gives the stacked mask of the bands: what ``binarize`` finds in them,
     away from the band edges (where a filter may see the band's end instead of the next rows),
     and nothing in the separator rows."""
-    from .bands import RowBands
+    from ..detection.bands import RowBands
 
     floor = make_tiny_floor()
     gray = np.array(floor.reference)
@@ -502,7 +255,7 @@ def check_extractor_outer(stage: ContourExtractor, *, seeds=(1, 2, 3)) -> None:
 
 def check_approximator_many(stage: ContourApproximator, *, seed: int = 2) -> None:
     """``approximate_many`` gives what ``approximate`` gives for each contour, in order."""
-    ext = plugins.extractor("opencv")
+    ext = registry.extractor("opencv")
     contours = [c for c in ext.extract(_random_mask(seed)) if len(c.points) >= 8][:12]
     contours.append(_rect_contour(3, 4, 40, 25))
     many = stage.approximate_many(contours)
@@ -530,7 +283,7 @@ def check_approximator_near_contour(stage: ContourApproximator, *, seeds=(1, 2))
     enclosing at least 200 px^2 is kept within 15 %."""
     from shapely.geometry import LineString, Point
 
-    ext = plugins.extractor("opencv")
+    ext = registry.extractor("opencv")
     for seed in seeds:
         contours = [c for c in ext.extract(_random_mask(seed)) if len(c.points) >= 20]
         for c in contours[:12]:
@@ -621,7 +374,7 @@ def check_matcher_discriminates(stage: DescriptorMatcher) -> None:
 # mapper
 
 def _grid(rows: int = 3, cols: int = 4, pitch: float = 40.0, origin=(30.0, 25.0)):
-    from .grid import fit_grid
+    from ..detection.grid import fit_grid
 
     c, r = np.meshgrid(np.arange(cols), np.arange(rows))
     centres = np.c_[origin[0] + pitch * c.ravel(), origin[1] + pitch * r.ravel()]
@@ -654,7 +407,7 @@ def check_mapper(stage: OccupancyMapper) -> None:
 # planner
 
 def _planning_map(radius: float = 0.3):
-    from .planning import PlanningMap
+    from ..planning import PlanningMap
 
     walls = [np.array([[3, 0], [4, 0], [4, 7], [3, 7]], float), np.array([[6, 3], [7, 3], [7, 10], [6, 10]], float)]
     return PlanningMap(walls, robot_radius=radius, bounds=(0, 0, 10, 10))
@@ -665,7 +418,7 @@ def check_planner_route(stage: Planner, *, time_limit: float = 2.0) -> None:
     obstacle (to 1e-6 of the map's size), and is no shorter than the straight line."""
     from shapely.geometry import LineString
 
-    from .planning.api import Problem
+    from ..planning import Problem
 
     pmap = _planning_map()
     start, goal = np.array([1.0, 1.0]), np.array([9.0, 1.0])
@@ -686,7 +439,7 @@ def check_planner_route(stage: Planner, *, time_limit: float = 2.0) -> None:
 
 def check_planner_rejects_bad_start(stage: Planner, *, time_limit: float = 0.5) -> None:
     """A start inside an obstacle raises a PlanningError (not a crash, not a route)."""
-    from .planning.api import Problem
+    from ..planning import Problem
 
     pmap = _planning_map()
     try:
@@ -713,115 +466,3 @@ def check_stage(stage: Stage) -> None:
     check_declaration(stage)
     for check in CHECKS[stage.kind]:
         check(stage)
-
-
-# -- contract suites for pytest ------------------------------------------------------------------
-
-class StageContract:
-    """Base of the contract suites. Subclass a kind's suite as ``class TestX(<Kind>Contract)``.
-
-    Set ``stage_class`` (and ``stage_options``), or ``stage_name`` to test the stage the registry
-    holds under that name (what users get through entry points), or override the ``stage`` fixture.
-    """
-
-    kind: ClassVar[str] = ""
-    stage_class: ClassVar[type[Stage] | None] = None
-    stage_options: ClassVar[dict[str, Any]] = {}
-    stage_name: ClassVar[str | None] = None
-
-    @pytest.fixture
-    def stage(self) -> Stage:
-        if self.stage_name is not None:
-            stage = plugins.registry().create(self.kind, self.stage_name, **self.stage_options)
-        elif self.stage_class is not None:
-            stage = self.stage_class(**self.stage_options)
-        else:
-            raise pytest.UsageError(f"{type(self).__name__}: set stage_class or stage_name, or override the stage fixture")
-        assert stage.kind == self.kind, f"{type(self).__name__} tests {self.kind}s, got a {stage.kind}"
-        return stage
-
-    def test_declaration(self, stage):
-        check_declaration(stage)
-
-    def test_registered(self, stage):
-        if self.stage_name is None:
-            pytest.skip("stage_class given: registration is not part of this suite (set stage_name)")
-        check_registered(stage)
-
-
-class BinarizerContract(StageContract):
-    kind = "binarizer"
-
-    def test_output(self, stage):
-        check_binarizer_output(stage)
-
-    def test_finds_ink(self, stage):
-        check_binarizer_finds_ink(stage)
-
-    def test_bands(self, stage):
-        check_binarizer_bands(stage)
-
-
-class ExtractorContract(StageContract):
-    kind = "extractor"
-
-    def test_rectangle(self, stage):
-        check_extractor_rectangle(stage)
-
-    def test_hole(self, stage):
-        check_extractor_hole(stage)
-
-    def test_region_and_hole_counts(self, stage):
-        check_extractor_counts(stage)
-
-    def test_empty(self, stage):
-        check_extractor_empty(stage)
-
-    def test_outer(self, stage):
-        check_extractor_outer(stage)
-
-
-class ApproximatorContract(StageContract):
-    kind = "approximator"
-
-    def test_rectangle(self, stage):
-        check_approximator_rectangle(stage)
-
-    def test_near_contour(self, stage):
-        check_approximator_near_contour(stage)
-
-    def test_many(self, stage):
-        check_approximator_many(stage)
-
-
-class MatcherContract(StageContract):
-    kind = "matcher"
-
-    def test_descriptors(self, stage):
-        check_matcher_descriptors(stage)
-
-    def test_distances(self, stage):
-        check_matcher_distances(stage)
-
-    def test_invariance(self, stage):
-        check_matcher_invariance(stage)
-
-    def test_discriminates(self, stage):
-        check_matcher_discriminates(stage)
-
-
-class MapperContract(StageContract):
-    kind = "mapper"
-
-    def test_occupancy_image(self, stage):
-        check_mapper(stage)
-
-
-class PlannerContract(StageContract):
-    kind = "planner"
-
-    def test_route(self, stage):
-        check_planner_route(stage)
-
-    def test_rejects_start_in_obstacle(self, stage):
-        check_planner_rejects_bad_start(stage)

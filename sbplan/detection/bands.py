@@ -7,7 +7,7 @@ its symbol is not found. Detection therefore thresholds, opens and traces contou
 bands around the symbol rows, stacked one under the other with an empty row between consecutive
 bands, so that no region of one band touches one of the next. On the 10 x 5 grid of the benchmark
 that is about half the frame. The floor level a binarizer compares against is still estimated on
-the whole frame (:meth:`sbplan.stages.Binarizer.binarize_bands`), so a shadow edge between two
+the whole frame (:meth:`sbplan.contracts.Binarizer.binarize_bands`), so a shadow edge between two
 symbol rows is seen where it is.
 
 Coordinates: a stacked image has the full image's columns; row ``r`` of it is row
@@ -20,7 +20,7 @@ from typing import Sequence
 
 import numpy as np
 
-from .errors import InputError
+from ..errors import InputError
 
 __all__ = ["RowBands"]
 

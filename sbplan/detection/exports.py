@@ -12,39 +12,46 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from .detection import Detection
-from .geometry import signed_area
-from .imageio import write_atomic, write_image
+from ..imageio import write_atomic, write_image
+from ..polygons import signed_area
+from .result import Detection
 
 _RED, _GREEN, _YELLOW, _CYAN, _WHITE, _BLACK = (40, 40, 230), (60, 200, 60), (0, 220, 255), (230, 200, 0), (255, 255, 255), (0, 0, 0)
 
 
 def overlay_image(image: np.ndarray, detection: Detection) -> np.ndarray:
     """The scene with occupied cells shaded red, found symbols marked green, MARs in yellow and
-    obstacle numbers (as the paper's figure 12). Returns a BGR image (H, W, 3) uint8."""
-    from .imageio import as_gray
+    obstacle numbers (as the paper's figure 12). Returns a BGR image (H, W, 3) uint8.
+
+    The detection's pixel coordinates are the calibration's; they are drawn where the camera's
+    movement (``detection.camera``) puts them in this frame."""
+    from ..imageio import as_gray
 
     gray = as_gray(image)
     out = cv2.cvtColor(gray, cv2.COLOR_GRAY2BGR)
     grid = detection.calibration.grid
-    corners = grid.cell_corners_px()
+    cam = detection.camera
+    to_frame = cam.to_frame if cam.moved else (lambda xy: np.asarray(xy, dtype=np.float64))
+    corners = to_frame(grid.cell_corners_px())
     shade = out.copy()
     for r, c in detection.occupied_cells:
         quad = np.array([corners[r, c], corners[r, c + 1], corners[r + 1, c + 1], corners[r + 1, c]])
         cv2.fillPoly(shade, [np.rint(quad * 16).astype(np.int32)], _RED, lineType=cv2.LINE_AA, shift=4)
     out = cv2.addWeighted(shade, 0.35, out, 0.65, 0)
     scale = max(1, round(min(gray.shape) / 500))
-    for x, y in detection.matched_centres_px:
+    for x, y in to_frame(detection.matched_centres_px.reshape(-1, 2)):
         cv2.circle(out, (int(round(x)), int(round(y))), 3 * scale, _GREEN, -1, cv2.LINE_AA)
-    for x, y in detection.candidates_px:
+    for x, y in to_frame(detection.candidates_px.reshape(-1, 2)):
         cv2.drawMarker(out, (int(round(x)), int(round(y))), _CYAN, cv2.MARKER_TILTED_CROSS, 8 * scale, scale)
     for ob in detection.obstacles:
-        cv2.polylines(out, [np.rint(ob.outline_px * 16).astype(np.int32)], True, _RED, scale, cv2.LINE_AA, shift=4)
-        cv2.polylines(out, [np.rint(ob.mar_px * 16).astype(np.int32)], True, _YELLOW, 2 * scale, cv2.LINE_AA, shift=4)
+        cv2.polylines(out, [np.rint(to_frame(ob.outline_px) * 16).astype(np.int32)], True, _RED, scale,
+                      cv2.LINE_AA, shift=4)
+        cv2.polylines(out, [np.rint(to_frame(ob.mar_px) * 16).astype(np.int32)], True, _YELLOW, 2 * scale,
+                      cv2.LINE_AA, shift=4)
         label = str(ob.id)
         font, fs, th = cv2.FONT_HERSHEY_SIMPLEX, 0.9 * scale, 2 * scale
         (tw, tht), _ = cv2.getTextSize(label, font, fs, th)
-        cx, cy = ob.centre_px
+        cx, cy = to_frame(np.asarray(ob.centre_px, dtype=np.float64))
         org = (int(cx - tw / 2), int(cy + tht / 2))
         cv2.putText(out, label, org, font, fs, _BLACK, th + 3 * scale, cv2.LINE_AA)
         cv2.putText(out, label, org, font, fs, _WHITE, th, cv2.LINE_AA)

@@ -1,0 +1,284 @@
+"""Contracts of the pluggable stages.
+
+A stage is a class with a ``kind`` (which contract it fulfils), a ``name`` (its key in the
+registry), a one-line ``description`` and typed options. Options are dataclass fields: decorate a
+concrete stage with ``@dataclass(kw_only=True)`` and declare each option with :func:`option`::
+
+    @dataclass(kw_only=True)
+    class MyMatcher(DescriptorMatcher):
+        name = "mine"
+        description = "What it does, in one line."
+        harmonics: int = option(20, "number of Fourier amplitudes kept")
+
+Instances are cheap, immutable in spirit and safe to share between threads.
+
+The detection pipeline runs, per image: binarizer -> extractor -> length filter -> approximator ->
+matcher -> occupancy mapper. Planners turn obstacles into routes.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import typing
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from typing import Any, ClassVar, Sequence
+
+import numpy as np
+
+from .contours import Contour
+from .errors import InputError
+
+if typing.TYPE_CHECKING:
+    from .detection.bands import RowBands
+
+#: The stage kinds, in pipeline order.
+KINDS = ("binarizer", "extractor", "approximator", "matcher", "mapper", "planner")
+
+
+def option(default: Any, help: str, **kwargs: Any) -> Any:
+    """Declare a stage option: a dataclass field with a default and a help text."""
+    if isinstance(default, (list, dict, set)):
+        return dataclasses.field(default_factory=lambda: type(default)(default), metadata={"help": help}, **kwargs)
+    return dataclasses.field(default=default, metadata={"help": help}, **kwargs)
+
+
+@dataclass(frozen=True)
+class OptionInfo:
+    """What a user needs to know to set an option."""
+
+    name: str
+    type: type
+    default: Any
+    help: str
+
+
+def _parse_value(raw: str, typ: type, name: str) -> Any:
+    try:
+        if typ is bool:
+            low = raw.strip().lower()
+            if low in ("1", "true", "yes", "on"):
+                return True
+            if low in ("0", "false", "no", "off"):
+                return False
+            raise ValueError(raw)
+        return typ(raw)
+    except (TypeError, ValueError):
+        raise InputError(f"option {name}: {raw!r} is not a valid {typ.__name__}") from None
+
+
+class Stage(ABC):
+    """Base of every stage contract."""
+
+    kind: ClassVar[str] = ""
+    name: ClassVar[str] = ""
+    description: ClassVar[str] = ""
+
+    @classmethod
+    def options(cls) -> list[OptionInfo]:
+        """The stage's options with their types, defaults and help texts."""
+        if not dataclasses.is_dataclass(cls):
+            return []
+        hints = typing.get_type_hints(cls)
+        out = []
+        for f in dataclasses.fields(cls):
+            default = f.default if f.default is not dataclasses.MISSING else (
+                f.default_factory() if f.default_factory is not dataclasses.MISSING else None)
+            typ = hints.get(f.name, str)
+            out.append(OptionInfo(f.name, typ if isinstance(typ, type) else str, default, f.metadata.get("help", "")))
+        return out
+
+    @classmethod
+    def from_strings(cls, pairs: Sequence[str] | dict[str, str] = ()) -> "Stage":
+        """Build an instance from ``key=value`` strings (as typed on the command line)."""
+        items = pairs.items() if isinstance(pairs, dict) else (
+            p.split("=", 1) if "=" in p else (p, None) for p in pairs)
+        known = {o.name: o for o in cls.options()}
+        kwargs = {}
+        for key, raw in items:
+            key = key.strip().replace("-", "_")
+            if raw is None:
+                raise InputError(f"option {key!r} for {cls.kind} {cls.name!r}: expected key=value")
+            if key not in known:
+                listing = ", ".join(known) or "none"
+                raise InputError(f"{cls.kind} {cls.name!r} has no option {key!r}; options: {listing}")
+            kwargs[key] = _parse_value(raw, known[key].type, key)
+        return cls(**kwargs)
+
+    def config(self) -> dict[str, Any]:
+        """The option values of this instance, for result files and reproducibility."""
+        if not dataclasses.is_dataclass(self):
+            return {}
+        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+
+
+class Binarizer(Stage):
+    """Turns a grayscale image into the binary image contours are extracted from."""
+
+    kind = "binarizer"
+
+    @abstractmethod
+    def binarize(self, gray: np.ndarray) -> np.ndarray:
+        """Return the foreground mask.
+
+        Parameters
+        ----------
+        gray : ndarray of shape (H, W), uint8
+            The image, row-major ``(row, col)``.
+
+        Returns
+        -------
+        ndarray of shape (H, W), bool
+            True where the printed symbols' ink (the dark foreground) is.
+        """
+
+    def binarize_bands(self, gray: np.ndarray, bands: RowBands) -> np.ndarray:
+        """The foreground mask of the row bands only, stacked (:meth:`sbplan.detection.bands.RowBands.stack`).
+
+        Detection calls this when the symbols fill only part of the frame's rows. The default
+        binarizes the whole image and stacks the bands, which gives the same mask as
+        :meth:`binarize` but saves nothing; a binarizer whose per-pixel work can be limited to the
+        bands overrides it, still looking at the whole image for anything it estimates from
+        context (a floor level, a global threshold).
+
+        Parameters
+        ----------
+        gray : ndarray of shape (H, W), uint8
+        bands : RowBands
+            For an image of shape (H, W).
+
+        Returns
+        -------
+        ndarray of shape ``bands.stacked_shape``, bool
+            Separator rows are False.
+        """
+        return bands.stack(self.binarize(gray), fill=False)
+
+
+class ContourExtractor(Stage):
+    """Finds every closed boundary (outer boundaries and holes) of a binary image."""
+
+    kind = "extractor"
+
+    @abstractmethod
+    def extract(self, binary: np.ndarray) -> list[Contour]:
+        """Return the boundaries of the 8-connected foreground regions and of their holes.
+
+        Parameters
+        ----------
+        binary : ndarray of shape (H, W), bool
+            Foreground mask; pixels outside the image count as background.
+
+        Returns
+        -------
+        list of Contour
+            Outer boundaries run counter-clockwise as displayed (``orientation=+1``), holes
+            clockwise (``orientation=-1``).
+        """
+
+    def extract_outer(self, binary: np.ndarray) -> list[Contour]:
+        """Only the outer boundaries (``is_hole`` False), in :meth:`extract`'s order.
+
+        Detection matches outer boundaries only, so this is what its hot path calls. The default
+        filters :meth:`extract`; an extractor that can skip holes more cheaply overrides it. The
+        ``parent`` of the returned contours is not meaningful (it may be -1).
+        """
+        return [c for c in self.extract(binary) if not c.is_hole]
+
+
+class ContourApproximator(Stage):
+    """Approximates a pixel contour by a polygon."""
+
+    kind = "approximator"
+
+    @abstractmethod
+    def approximate(self, contour: Contour) -> np.ndarray:
+        """Return the polygon's vertices, shape (M, 2) float64 ``(x, y)``, M >= 3 when possible,
+        in the contour's traversal order, not closed (first vertex not repeated)."""
+
+    def approximate_many(self, contours: Sequence[Contour]) -> list[np.ndarray]:
+        """:meth:`approximate` of every contour, in order. Detection calls this once per frame;
+        override it when a batch is cheaper than one call per contour."""
+        return [self.approximate(c) for c in contours]
+
+
+class DescriptorMatcher(Stage):
+    """Describes closed outlines by fixed-size vectors and measures how different two are."""
+
+    kind = "matcher"
+    #: distances below this mean "same shape" when no calibration has derived a better one.
+    default_threshold: ClassVar[float] = 0.5
+
+    @abstractmethod
+    def describe(self, points: np.ndarray) -> np.ndarray:
+        """Descriptor of one closed outline.
+
+        Parameters
+        ----------
+        points : array_like of shape (N, 2)
+            Vertices or boundary pixels ``(x, y)`` in traversal order, N >= 3, not closed.
+
+        Returns
+        -------
+        ndarray of shape (K,), float64
+            Finite, and of the same K for every input of this instance.
+        """
+
+    def describe_many(self, outlines: Sequence[np.ndarray]) -> np.ndarray:
+        """Descriptors of many outlines, shape (n, K). Override where a batch is faster."""
+        if len(outlines) == 0:
+            return np.zeros((0, len(self.describe(np.array([[0, 0], [1, 0], [0, 1]], float)))))
+        return np.stack([self.describe(p) for p in outlines])
+
+    def distance(self, a: np.ndarray, b: np.ndarray) -> float:
+        """Distance between two descriptors: >= 0, symmetric, 0 for identical descriptors."""
+        return float(self.distance_matrix(np.asarray(a)[None, :], np.asarray(b)[None, :])[0, 0])
+
+    @abstractmethod
+    def distance_matrix(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """All pairwise distances between the rows of ``a`` (n, K) and ``b`` (m, K): shape (n, m)."""
+
+
+class OccupancyMapper(Stage):
+    """Turns the grid's occupied cells into the occupancy image (paper section 4.1)."""
+
+    kind = "mapper"
+
+    @abstractmethod
+    def occupancy_image(self, grid: Any, occupied: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+        """Return the occupancy image.
+
+        Parameters
+        ----------
+        grid : sbplan.detection.grid.Grid
+            The calibrated grid (cell centres in image pixels, rows x cols).
+        occupied : ndarray of shape (rows, cols), bool
+            True for occupied cells, indexed ``(row, col)``.
+        shape : (H, W)
+            The image's shape.
+
+        Returns
+        -------
+        ndarray of shape (H, W), uint8
+            0 (black) in occupied cells' blocks, 255 elsewhere.
+        """
+
+
+class Planner(Stage):
+    """Plans a collision-free route among polygonal obstacles."""
+
+    kind = "planner"
+
+    @abstractmethod
+    def solve(self, problem: Any, *, time_limit: float = 1.0) -> Any:
+        """Solve a ``sbplan.planning.Problem`` and return a ``sbplan.planning.Route``."""
+
+
+CONTRACTS: dict[str, type[Stage]] = {
+    "binarizer": Binarizer,
+    "extractor": ContourExtractor,
+    "approximator": ContourApproximator,
+    "matcher": DescriptorMatcher,
+    "mapper": OccupancyMapper,
+    "planner": Planner,
+}

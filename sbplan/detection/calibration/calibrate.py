@@ -1,0 +1,307 @@
+"""Calibration on the empty floor (paper section 2.2).
+
+From the reference image: every contour, the length filter, polygon approximation, descriptors and
+centres of area; the reference symbol (given as an image of one symbol, or inferred as the dominant
+repeated shape); the grid fitted to the symbols' centres; and a match threshold derived from the
+data — the distances of the true symbols against those of every other contour — instead of the
+paper's a-priori 0.5.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import replace
+from typing import Any
+
+import cv2
+import numpy as np
+
+from ... import registry
+from ...errors import CalibrationError, InputError
+from ...imageio import as_gray, load_image
+from ...workspace import Workspace, load_workspace
+from ..grid import Grid, fit_grid
+from ..outline_checks import (edge_contrast, edge_probes, inner_deviations, inner_tolerance, outline_deviation,
+                              reference_samples, signed_distance_map)
+from ..registration import centre_window, grey_centres, thumbnail
+from .file import Calibration
+from .shapes import Shapes, extract_shapes
+from .threshold import match_threshold
+
+#: The stages used when none is named: the fast ones (the paper's OKE and KKA are selectable).
+DEFAULT_STAGES = {
+    "binarizer": "background",
+    "extractor": "opencv",
+    "approximator": "douglas-peucker",
+    "matcher": "fourier",
+    "mapper": "cells",
+}
+
+
+def _stage_spec(stage) -> dict[str, Any]:
+    return {"name": stage.name, "options": stage.config()}
+
+
+def _symbol_descriptor_from_image(symbol: Any, *, extractor, approximator, matcher) -> np.ndarray:
+    gray = as_gray(load_image(symbol) if isinstance(symbol, (str, os.PathLike)) else symbol, name="symbol")
+    # An image of one symbol on a plain ground, at any scale: one global threshold separates them
+    # (a local binarizer sized for the floor's symbols would not), and the largest dark shape is it.
+    h, w = gray.shape
+    shapes = extract_shapes(gray, binarizer=registry.binarizer("otsu"), extractor=extractor,
+                            approximator=approximator, matcher=matcher, points_range=(8, 4 * (h + w)))
+    if not shapes.polygons:
+        raise CalibrationError("symbol image: no dark shape found in it")
+    return shapes.descriptors[int(np.argmax(shapes.areas))]
+
+
+def update_calibration(calibration: Calibration, frame: Any, **stages: Any) -> tuple[Calibration, Any]:
+    """Re-anchor a calibration to the camera's present pose from a frame with obstacles on it.
+
+    The frame is registered to the calibration with the free symbols it shows
+    (:mod:`sbplan.detection.registration`), and the calibration is moved by that movement
+    (:meth:`Calibration.moved`): detection on later frames then starts from the new pose, with no
+    need to empty the floor. Nothing is written here; a movement that cannot be estimated raises
+    before anything changes.
+
+    Parameters
+    ----------
+    calibration : Calibration
+    frame : ndarray (H, W) or (H, W, 3), or a path
+        A current frame from the moved camera (obstacles allowed).
+    **stages
+        Stage overrides, as for :func:`sbplan.detection.detect`.
+
+    Returns
+    -------
+    (Calibration, CameraMotion)
+        The moved calibration, and the movement it was moved by.
+
+    Raises
+    ------
+    CameraMotionError
+        The movement cannot be estimated, or is too large to pair symbols with cells.
+    """
+    from ..detector import Detector  # the detector is built on calibrations: imported when used
+
+    cells = Detector(calibration, **stages).find_cells(frame)
+    motion = cells.camera
+    updated = calibration.moved(motion.matrix)
+    stats = dict(updated.stats)
+    stats["updates"] = [*stats.get("updates", []), {**motion.to_json(), "symbols_found": cells.symbols_found}]
+    return replace(updated, stats=stats), motion
+
+
+def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str | os.PathLike | None = None,
+              cell_size: float | None = None, binarizer: Any = None, extractor: Any = None,
+              approximator: Any = None, matcher: Any = None, mapper: Any = None) -> Calibration:
+    """Calibrate on an image of the empty floor.
+
+    Parameters
+    ----------
+    reference : str, path or ndarray of shape (H, W) or (H, W, 3)
+        The reference image (empty floor, every symbol visible).
+    symbol : str, path or ndarray, optional
+        An image of one reference symbol. When absent, the symbol is inferred as the dominant
+        repeated shape of the reference.
+    workspace : Workspace or path of a workspace.toml / map folder, optional
+        Grid pitch in metres, origin, robot radius, default route.
+    cell_size : float, optional
+        Grid pitch in metres (both directions) when no workspace is given; default 1.0.
+    binarizer, extractor, approximator, matcher, mapper : str or Stage, optional
+        Stage names (or instances); defaults in :data:`DEFAULT_STAGES`.
+
+    Raises
+    ------
+    CalibrationError
+        No symbols, an irregular grid, or no shape that repeats.
+    """
+    gray = as_gray(load_image(reference) if isinstance(reference, (str, os.PathLike)) else reference,
+                   name="reference")
+    if workspace is not None and not isinstance(workspace, Workspace):
+        workspace = load_workspace(workspace)
+    if cell_size is not None:
+        if not cell_size > 0:
+            raise InputError(f"cell_size: must be a positive number of metres, got {cell_size}")
+        base = workspace or Workspace()
+        workspace = replace(base, pitch_m=(float(cell_size), float(cell_size)), origin_m=base.origin_m)
+    workspace = workspace or Workspace()
+    reg = registry.registry()
+    chosen = {kind: reg.create(kind, given if given is not None else DEFAULT_STAGES[kind])
+              for kind, given in (("binarizer", binarizer), ("extractor", extractor), ("approximator", approximator),
+                                  ("matcher", matcher), ("mapper", mapper))}
+    h, w = gray.shape
+    points_range = (12, max(16, (h + w) // 2))
+    kw = dict(extractor=chosen["extractor"], approximator=chosen["approximator"], matcher=chosen["matcher"])
+    shapes = extract_shapes(gray, binarizer=chosen["binarizer"], points_range=points_range, **kw)
+    given = None if symbol is None else _symbol_descriptor_from_image(
+        symbol, extractor=chosen["extractor"], approximator=chosen["approximator"], matcher=chosen["matcher"])
+    members = _symbol_members(shapes, chosen["matcher"], ref=given)
+    # Fit the binarizer to the symbol size found and run again: a window of a few symbol sizes
+    # follows the light without swallowing the symbol itself.
+    fit = getattr(chosen["binarizer"], "with_symbol_size", None)
+    if fit is not None:
+        size = float(np.sqrt(np.median(shapes.areas[members])))
+        refit = fit(size * 1.6)
+        if refit != chosen["binarizer"]:
+            chosen["binarizer"] = refit
+            shapes = extract_shapes(gray, binarizer=refit, points_range=points_range, **kw)
+            members = _symbol_members(shapes, chosen["matcher"], ref=given)
+    reference_descriptor = np.median(shapes.descriptors[members], axis=0)
+    dist = chosen["matcher"].distance_matrix(shapes.descriptors, reference_descriptor[None, :])[:, 0]
+    grid = fit_grid(shapes.centres[members])
+    # What a symbol looks like in later images is not what it looks like in this one: measure the
+    # symbols again in degraded copies of the reference (defocus, dimmer light, sensor noise).
+    cells = grid.assign(shapes.centres[members])
+    cell_area = np.empty((grid.rows, grid.cols))
+    cell_area[cells[:, 0], cells[:, 1]] = shapes.areas[members]
+    symbol_polygons = [shapes.polygons[i] for i in members[np.argsort(cells[:, 0] * grid.cols + cells[:, 1])]]
+    distance_map = signed_distance_map(symbol_polygons, gray.shape)
+    degraded, deviations, degraded_polygons, degraded_cells, shifts = _degraded_symbols(
+        gray, grid, reference_descriptor, cell_area, distance_map,
+        binarizer=chosen["binarizer"], points_range=points_range, **kw)
+    # An obstacle that clips a symbol moves part of its outline by more than light and focus
+    # move it; the tolerance sits outside what the degraded copies showed, and at least 1 px.
+    outline_tolerance = float(max(1.25 * np.max(deviations), 1.0)) if len(deviations) else 3.0
+    # ... and the other way round: how far defocus and light pull each reference point in
+    ref_points, _ = reference_samples(symbol_polygons)
+    inner = inner_deviations(ref_points[degraded_cells], degraded_polygons, shifts)
+    inner_tol = (inner_tolerance(inner, degraded_cells, grid.rows * grid.cols) if len(degraded_cells)
+                 else np.full((grid.rows * grid.cols, ref_points.shape[1]), outline_tolerance))
+    threshold, margin = match_threshold(chosen["matcher"], reference_descriptor,
+                                        np.concatenate([dist[members], degraded]), np.delete(dist, members),
+                                        area=float(np.median(shapes.areas[members])))
+    order = np.argsort(cells[:, 0] * grid.cols + cells[:, 1])
+    symbol_idx = members[order]
+    others = np.setdiff1d(np.arange(len(shapes.polygons)), members)
+    rng = np.random.default_rng(0)  # the sample of other contours is kept small and reproducible
+    sample = rng.choice(others, size=min(len(others), 200), replace=False) if len(others) else others
+    keep_degraded = rng.choice(len(degraded_polygons), size=min(len(degraded_polygons), 300), replace=False)
+    n_points = shapes.points[symbol_idx]
+    stats = {
+        "contours": shapes.n_contours,
+        "after_length_filter": len(shapes.polygons),
+        "symbols": int(len(members)),
+        "symbol_distance_max": float(dist[members].max()),
+        "other_distance_min": float(np.delete(dist, members).min()) if len(others) else None,
+        "rejected_centres_px": np.round(shapes.centres[others][:500], 2).tolist(),
+    }
+    return Calibration(
+        image_shape=(h, w),
+        stages={k: _stage_spec(v) for k, v in chosen.items()},
+        grid=grid,
+        symbol_polygons=[shapes.polygons[i] for i in symbol_idx],
+        other_polygons=[shapes.polygons[i] for i in sample],
+        degraded_polygons=[degraded_polygons[i] for i in sorted(keep_degraded)],
+        descriptor=reference_descriptor,
+        threshold=threshold,
+        margin=margin,
+        symbol_area_px=float(np.median(shapes.areas[members])),
+        symbol_points_range=(int(n_points.min() * 0.7), int(np.ceil(n_points.max() * 1.4))),
+        outline_tolerance_px=outline_tolerance,
+        inner_tolerance_px=inner_tol,
+        edge_contrast=edge_contrast(gray, *edge_probes(symbol_polygons)),
+        registration_centres_px=_registration_centres(gray, symbol_polygons, grid),
+        reference_thumbnail=thumbnail(gray),
+        workspace=workspace,
+        stats=stats,
+    )
+
+
+def _registration_centres(gray: np.ndarray, symbol_polygons: list[np.ndarray], grid: Grid) -> np.ndarray:
+    """Each cell's symbol's grey-level centre (rows, cols, 2): what registration pairs frames'
+    symbols with (:func:`sbplan.detection.registration.grey_centres`); the grid's centre where a
+    symbol's box leaves the image."""
+    boxes = np.array([[p[:, 0].min(), p[:, 1].min(), p[:, 0].max(), p[:, 1].max()] for p in symbol_polygons])
+    centres = grey_centres(gray, boxes, centre_window(symbol_polygons))
+    fallback = grid.centres_px.reshape(-1, 2)
+    bad = ~np.isfinite(centres).all(axis=1)
+    centres[bad] = fallback[bad]
+    return centres.reshape(grid.rows, grid.cols, 2)
+
+
+def _degraded_symbols(gray: np.ndarray, grid: Grid, descriptor: np.ndarray, cell_area: np.ndarray,
+                      distance_map: np.ndarray, *,
+                      binarizer, extractor, approximator, matcher, points_range) -> tuple:
+    """The reference's symbols in defocused, dimmed, dark-and-grainy and noisy copies of it.
+
+    Returns their descriptor distances to ``descriptor``, their outlines' deviations from the
+    reference outlines and common shifts (:func:`sbplan.detection.outline_checks.outline_deviation`), their
+    polygons and their cells (flat, row-major), as ``(distances, deviations, polygons, cells,
+    shifts)``.
+    """
+    rng = np.random.default_rng(0)  # reproducible noise
+    g = gray.astype(np.float64)
+    copies = [
+        cv2.GaussianBlur(gray, (0, 0), 2.0),
+        cv2.convertScaleAbs(gray, alpha=0.6),
+        np.clip(0.3 * g + rng.normal(0, 4, g.shape), 0, 255).astype(np.uint8),
+        np.clip(g + rng.normal(0, 8, g.shape), 0, 255).astype(np.uint8),
+    ]
+    distances, deviations, polygons, cells_kept, shifts = [], [], [], [], []
+    for image in copies:
+        shapes = extract_shapes(image, binarizer=binarizer, extractor=extractor, approximator=approximator,
+                                matcher=matcher, points_range=points_range)
+        if not shapes.polygons:
+            continue
+        cells = grid.assign(shapes.centres)
+        ok = cells[:, 0] >= 0
+        ratio = np.full(len(cells), np.inf)
+        ratio[ok] = shapes.areas[ok] / cell_area[cells[ok, 0], cells[ok, 1]]
+        ok &= np.abs(np.log(ratio)) < np.log(1.3)
+        if not ok.any():  # this degradation erased every symbol: it says nothing about them
+            continue
+        d = matcher.distance_matrix(shapes.descriptors[ok], descriptor[None, :])[:, 0]
+        # one shape per cell: the best match (a cell may also hold the odd noise blob)
+        flat = cells[ok, 0] * grid.cols + cells[ok, 1]
+        order = np.lexsort((d, flat))
+        first = order[np.r_[True, flat[order][1:] != flat[order][:-1]]]
+        distances.append(d[first])
+        kept = np.flatnonzero(ok)[first]
+        dev, shift = outline_deviation([shapes.polygons[i] for i in kept], distance_map, return_shift=True)
+        deviations.append(dev)
+        shifts.append(shift)
+        cells_kept.append(flat[first])
+        polygons.extend(shapes.polygons[i] for i in kept)
+    if not distances:
+        return np.zeros(0), np.zeros(0), [], np.zeros(0, np.int64), np.zeros(0)
+    return (np.concatenate(distances), np.concatenate(deviations), polygons, np.concatenate(cells_kept),
+            np.concatenate(shifts))
+
+
+def _symbol_members(shapes: Shapes, matcher, *, ref: np.ndarray | None) -> np.ndarray:
+    """Indices of the shapes that are the reference symbol: those near ``ref`` (the descriptor of a
+    given symbol image) or, without one, the dominant repeated shape."""
+    n = len(shapes.polygons)
+    if n == 0:
+        raise CalibrationError("no symbols found in the reference image (no dark shapes of symbol size)")
+    if ref is not None:
+        d = matcher.distance_matrix(shapes.descriptors, ref[None, :])[:, 0]
+        near = d < getattr(matcher, "default_threshold", 0.5)
+        if not near.any():
+            raise CalibrationError("no symbols found in the reference image: no contour matches the given symbol")
+        # the symbols also share one size: keep those near the median area of the matches
+        area = np.median(shapes.areas[near])
+        members = np.flatnonzero(near & (np.abs(shapes.areas / area - 1) < 0.35))
+    else:
+        members = _dominant_repeated_shape(shapes, matcher)
+    if len(members) < 4:
+        raise CalibrationError(
+            f"no symbol grid found in the reference image: the most repeated shape occurs {len(members)} time(s)")
+    return members
+
+
+def _dominant_repeated_shape(shapes: Shapes, matcher) -> np.ndarray:
+    """The largest group of contours with the same shape and the same size."""
+    d = matcher.distance_matrix(shapes.descriptors, shapes.descriptors)
+    ratio = shapes.areas[:, None] / shapes.areas[None, :]
+    same_size = np.abs(np.log(ratio)) < np.log(1.35)
+    tight = 0.25 * getattr(matcher, "default_threshold", 0.5)
+    alike = (d < tight) & same_size
+    seed = int(np.argmax(alike.sum(axis=1)))
+    members = np.flatnonzero(alike[seed])
+    # widen once around the group's median so the seed's own noise does not decide membership
+    median = np.median(shapes.descriptors[members], axis=0)
+    dm = matcher.distance_matrix(shapes.descriptors, median[None, :])[:, 0]
+    spread = max(float(np.max(dm[members])), 1e-6)
+    area = np.median(shapes.areas[members])
+    return np.flatnonzero((dm <= 2.0 * spread) & (np.abs(np.log(shapes.areas / area)) < np.log(1.35)))

@@ -1,0 +1,416 @@
+"""Detection (paper section 4): which cells are occupied, and the obstacles they form.
+
+The hot path: binarize -> extract -> length filter -> approximate -> describe and match ->
+assign to cells -> occupancy image -> obstacles. :class:`Detector` does the per-calibration work
+once (stages, reference descriptors, thresholds), so a stream of frames pays only for the image.
+"""
+
+from __future__ import annotations
+
+import collections.abc
+import os
+import time
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+
+from ..errors import CameraMotionError, DetectionError
+from ..imageio import as_gray, load_image
+from ..polygons import PolygonBatch, centroids, resample_complex, signed_areas
+from .bands import RowBands
+from .calibration.file import Calibration, load_calibration
+from .calibration.shapes import length_filter_steps
+from .obstacles import find_obstacles
+from .outline_checks import (EDGE_SAMPLES, EDGE_SCRATCH_POINTS, INNER_MARGIN_PX, SAMPLES, edge_factors, edge_kept,
+                             edge_probes, hidden_piece, intact_edges, reference_samples, samples_deviation,
+                             scratches_repaired, signed_distance_map)
+from .registration import INLIER_PX, MIN_SYMBOLS, CameraMotion, apply, centre_window, grey_centres, register
+from .result import CellDetection, Detection
+
+#: Row bands reach this many symbol sizes (and at least BAND_MARGIN_PX) above and below the
+#: reference symbols: room for defocus and small camera shake.
+BAND_MARGIN = 0.25
+BAND_MARGIN_PX = 6.0
+#: Bands are used when they cover at most this fraction of the frame's rows.
+BANDS_WORTH_IT = 0.8
+#: Rows a registered symbol must keep from its band's edges; closer, the frame is done again with
+#: bands laid out for the registered pose (a camera that moved more than the margin since the last frame).
+BAND_SPARE_PX = 2.0
+#: Cells called occupied whose scratches are looked for in one frame, at most (wear is a few
+#: symbols here and there; a frame with more broken symbols has obstacles, not wear).
+SCRATCH_CELLS = 24
+#: Cells whose edge is broken at more than this share of its points are not looked at for scratches.
+SCRATCH_BROKEN_SHARE = 0.3
+#: Symbols whose grey-level centres refine the registration (spread over the grid): 24 pin it to
+#: about 0.05 px on the renderer's scenes at half the cost of all 50.
+REGISTRATION_SYMBOLS = 24
+
+
+class Detector:
+    """Detection with one calibration and one choice of stages, reusable across frames.
+
+    Stage arguments are names or instances; None means the calibrated stage. A matcher other than
+    the calibrated one (by name or options) takes its reference descriptor and threshold from
+    :meth:`Calibration.matching_for`.
+
+    With ``row_bands`` (the default) the per-pixel work is limited to the rows around the
+    reference's symbols when they are at most 80 % of the frame (:mod:`sbplan.detection.bands`);
+    the cells found are the same as on whole frames, at about half the cost. ``row_bands=False``
+    processes whole frames.
+    """
+
+    def __init__(self, calibration: Calibration, *, binarizer: Any = None, extractor: Any = None,
+                 approximator: Any = None, matcher: Any = None, mapper: Any = None, row_bands: bool = True,
+                 register: bool = True):
+        self.calibration = cal = calibration
+        self.binarizer = cal.stage("binarizer", binarizer)
+        self.extractor = cal.stage("extractor", extractor)
+        if "chains" in self.extractor.config() and self.extractor.config()["chains"]:
+            # Freeman chains are for the paper's KKA; skip them on the hot path when nobody needs them.
+            if (approximator or cal.stages["approximator"]["name"]) != "kka":
+                self.extractor = replace(self.extractor, chains=False)
+        self.approximator = cal.stage("approximator", approximator)
+        self.matcher = cal.stage("matcher", matcher)
+        self.mapper = cal.stage("mapper", mapper)
+        self.descriptor, self.threshold = cal.matching_for(self.matcher)
+        areas = np.abs(signed_areas(cal.symbol_polygons))
+        self.cell_area = areas.reshape(cal.grid.rows, cal.grid.cols)
+        # what find_cells reads per frame, made once: cell areas by flat cell number, the ratio bound
+        self._cell_area_flat = self.cell_area.ravel()
+        self._log_area_tolerance = np.log(1.3)
+        self.distance_map = signed_distance_map(cal.symbol_polygons, cal.image_shape)
+        # each cell's reference outline points, moved into the symbol by what light and focus pull
+        # them in (calibrated per point) plus a margin: a found symbol must cover them all
+        self.ref_points, self.inward = reference_samples(cal.symbol_polygons)
+        tol = cal.inner_tolerance_px if cal.inner_tolerance_px is not None else cal.outline_tolerance_px
+        self.allowance = np.broadcast_to(tol, self.ref_points.shape[:2]) + INNER_MARGIN_PX
+        # Symbols only appear in the rows where the reference showed them, moved as the camera
+        # moved; when those rows are a clear part of the frame, the per-pixel work is limited to
+        # them (sbplan.detection.bands), laid out for the camera's last known pose (self._bands_for).
+        self._row_bands = bool(row_bands and cal.symbol_polygons)
+        self._band_margin = max(BAND_MARGIN_PX, BAND_MARGIN * float(np.sqrt(np.median(areas)))) if len(areas) else 0.0
+        # each symbol's bounding box corners, whose rows the bands must hold (cell, 4 corners, xy)
+        self._symbol_corners = np.array([[[p[:, 0].min(), p[:, 1].min()], [p[:, 0].max(), p[:, 1].min()],
+                                          [p[:, 0].min(), p[:, 1].max()], [p[:, 0].max(), p[:, 1].max()]]
+                                         for p in cal.symbol_polygons]).reshape(-1, 4, 2)
+        self._bands_cache: tuple[np.ndarray, RowBands | None] | None = None
+        self.bands: RowBands | None = self._bands_for(np.eye(3))
+        # registration: the camera's movement since calibration, estimated on every frame
+        # (sbplan.detection.registration); the last estimate seeds the next frame's
+        self.register = bool(register)
+        self.motion: CameraMotion = CameraMotion.none()
+        self._registration_centres = (cal.registration_centres_px if cal.registration_centres_px is not None
+                                      else cal.grid.centres_px)
+        self._registration_grid = replace(cal.grid, centres_px=self._registration_centres)
+        self._centre_window = centre_window(cal.symbol_polygons) if cal.symbol_polygons else 0
+        # the length filter's bounds, checked once (length_filter raises on bad ones)
+        length_filter_steps([], cal.symbol_points_range)
+        self._points_range = (float(cal.symbol_points_range[0]), float(cal.symbol_points_range[1]))
+        self._inward_planes = np.ascontiguousarray(self.inward.transpose(0, 2, 1))
+        # A cell the outline checks call occupied is free after all when the grey image still shows
+        # its symbol's edge all around (sbplan.detection.outline_checks.edges_intact): where each reference
+        # outline is read, and the step the reference showed there. Old calibrations have none.
+        n_cells = len(cal.symbol_polygons)
+        self._edge_x = self._edge_y = self._edge_factors = None
+        if cal.edge_contrast is not None and np.shape(cal.edge_contrast) == (n_cells, EDGE_SAMPLES) and n_cells:
+            self._edge_x, self._edge_y = edge_probes(cal.symbol_polygons)
+            self._edge_factors = edge_factors(cal.edge_contrast)
+            self._cell_centres = centroids(cal.symbol_polygons)
+        self.stage_names = {"binarizer": self.binarizer.name, "extractor": self.extractor.name,
+                            "approximator": self.approximator.name, "matcher": self.matcher.name,
+                            "mapper": self.mapper.name}
+
+    def _bands_for(self, matrix: np.ndarray) -> RowBands | None:
+        """The row bands around the symbols as a camera moved by ``matrix`` (calibration -> frame)
+        shows them, or None for whole frames; the last ones are kept while the pose stays within
+        a pixel of theirs."""
+        if not self._row_bands:
+            return None
+        cached = self._bands_cache
+        if cached is not None and np.abs(apply(cached[0], self._symbol_corners[:, 0]) -
+                                         apply(matrix, self._symbol_corners[:, 0])).max() < 1.0:
+            return cached[1]
+        corners = apply(matrix, self._symbol_corners)
+        bands = RowBands.around(list(corners), self.calibration.image_shape, margin=self._band_margin)
+        bands = bands if bands.fraction <= BANDS_WORTH_IT else None
+        self._bands_cache = (matrix, bands)
+        return bands
+
+    def _bands_hold(self, bands: RowBands | None, motion: CameraMotion) -> bool:
+        """Do ``bands`` hold every symbol's rows, with a few rows to spare, where ``motion`` puts them?"""
+        if bands is None:
+            return True
+        y = apply(motion.matrix, self._symbol_corners)[..., 1]
+        lo, hi = y.min(axis=1) - BAND_SPARE_PX, y.max(axis=1) + BAND_SPARE_PX
+        band = np.searchsorted(bands.starts, lo, side="right") - 1
+        ok = band >= 0
+        return bool(ok.all() and (hi < bands.stops[band]).all() and (lo >= bands.starts[band]).all())
+
+    def find_cells(self, image: Any) -> CellDetection:
+        """Image in -> occupied cells out: the pipeline up to the mapper, for callers that need
+        only the cells (and what :meth:`__call__` builds on).
+
+        The frame is first registered to the calibration (:mod:`sbplan.detection.registration`): the
+        camera's movement is estimated from the symbols the matcher found, and every check after
+        that reads the frame where the movement puts each cell. Pixel coordinates in the result
+        are the calibration's.
+
+        Raises
+        ------
+        DetectionError
+            The image's size differs from the calibration's.
+        CameraMotionError
+            The camera's movement since calibration cannot be estimated or is too large.
+        """
+        cal = self.calibration
+        timings: dict[str, float] = {}
+        t0 = t = time.perf_counter()
+
+        def lap(name: str) -> None:
+            nonlocal t
+            now = time.perf_counter()
+            timings[name] = timings.get(name, 0.0) + (now - t) * 1e3
+            t = now
+
+        gray = as_gray(load_image(image) if isinstance(image, (str, os.PathLike)) else image, name="image")
+        if gray.shape != tuple(cal.image_shape):
+            raise DetectionError(
+                f"image is {gray.shape[1]}x{gray.shape[0]} but the calibration is for "
+                f"{cal.image_shape[1]}x{cal.image_shape[0]}; calibrate on a reference from the same camera")
+        hint = self.motion if self.register else CameraMotion.none()
+        bands = self._bands_for(hint.matrix)
+        for attempt in range(2):
+            frame = self._symbols(gray, bands, lap)
+            try:
+                motion = self._registered(gray, frame, hint, bands)
+            except CameraMotionError:
+                if bands is None or attempt:
+                    raise
+                # the symbols may have left the bands laid out for the last pose: the whole frame
+                bands = None
+                lap("register")
+                continue
+            lap("register")
+            if attempt or self._bands_hold(bands, motion):
+                break
+            # the camera moved beyond the bands laid out for the last pose: lay them out again
+            bands = self._bands_for(motion.matrix)
+        self.motion = motion
+        binary, polygons, hit, centres, areas = frame
+        rows, cols = cal.grid.shape
+        found = np.zeros((rows, cols), bool)
+        matched = np.zeros((0, 2))
+        candidates = np.zeros((0, 2))
+        moved = motion.moved
+        if len(hit):
+            # centres in the calibration's pixels, where the cells and their reference outlines are
+            centres = motion.to_calibration(centres) if moved else centres
+            cells = cal.grid.assign(centres)
+            flat = cells[:, 0] * cols + cells[:, 1]  # negative off the grid
+            # idx: the hits still taken for their cell's symbol, narrowed by each test below
+            idx = np.flatnonzero(flat >= 0)
+            # A camera sees each cell's symbol at one size (times the registered zoom). Light and
+            # focus scale every symbol alike; what remains is a symbol grown or shrunk on its own:
+            # partly hidden, or not the symbol at all.
+            ratio = areas[idx] / (self._cell_area_flat[flat[idx]] * motion.scale ** 2)
+            idx = idx[np.abs(np.log(ratio)) < self._log_area_tolerance]
+            # ... and at one place: an outline that strays from its cell's reference outline
+            # more than light and focus make it is partly hidden.
+            if len(idx):
+                picked = hit[idx]
+                # the checked outlines' samples are rows of the descriptors' (resample_complex
+                # remembers them with the batch), so no batch of the checked outlines is made
+                z = resample_complex(polygons, SAMPLES)[picked]
+                xy = np.stack([z.real, z.imag], axis=-1).reshape(-1, 2)
+                if bands is not None:
+                    xy = bands.to_full(xy)
+                if moved:
+                    xy = motion.to_calibration(xy)
+                xy = xy.reshape(len(picked), SAMPLES, 2)
+                deviation, shift = samples_deviation(xy[..., 0], xy[..., 1], self.distance_map)
+                # the outline's shift was measured in calibration pixels; the frame's are scaled
+                shift = shift * motion.scale
+                straight = ~(deviation > cal.outline_tolerance_px)
+                # ... and one that left out a piece of its cell's reference outline is too
+                # (asked only of the outlines the deviation kept: a partly hidden symbol often
+                # fails both, and the second test's cost is per such symbol)
+                if not straight.all():
+                    idx, picked, shift = idx[straight], picked[straight], shift[straight]
+                if len(idx):
+                    cell = flat[idx]
+                    points, inward = self.ref_points[cell], self.inward[cell]
+                    if moved:
+                        points = motion.to_frame(points)
+                        lin = motion.matrix[:2, :2] / motion.scale
+                        inward = inward @ lin.T
+                    if bands is not None:
+                        points = bands.to_stacked(points.reshape(-1, 2)).reshape(points.shape)
+                    hidden = hidden_piece(_Picked(polygons, picked), shift, points, inward,
+                                          self.allowance[cell] * motion.scale, binary)
+                    if hidden.any():
+                        idx = idx[~hidden]
+            found.ravel()[flat[idx]] = True
+            ok = np.zeros(len(hit), bool)
+            ok[idx] = True
+            matched, candidates = centres[ok], centres[~ok]
+        if self._edge_x is not None and not found.all():
+            # the cells called occupied whose symbol's edge still shows all around in the grey image,
+            # but for short breaks where scratches cross it
+            missing = np.flatnonzero(~found.ravel())
+            ex, ey = self._edge_x[missing], self._edge_y[missing]
+            if moved:
+                q = motion.to_frame(np.stack([ex, ey], axis=-1))
+                ex, ey = q[..., 0].astype(np.float32), q[..., 1].astype(np.float32)
+            kept = edge_kept(gray, ex, ey, self._edge_factors[missing])
+            intact = intact_edges(kept, max_break=EDGE_SCRATCH_POINTS)
+            # ... or shows it once the thin scratches across it are painted over (wear), asked of
+            # a few cells only: an obstacle over a symbol breaks most of its edge, scratches a few
+            # points, and a floor that is mostly occupied is not worn symbols
+            broken = np.flatnonzero(~intact & ((~kept).mean(axis=1) <= SCRATCH_BROKEN_SHARE))
+            if 0 < len(broken) <= SCRATCH_CELLS:
+                outlines = [cal.symbol_polygons[c] for c in missing[broken]]
+                if moved:
+                    outlines = [motion.to_frame(o) for o in outlines]
+                intact[broken] = scratches_repaired(gray, outlines, ex[broken], ey[broken],
+                                                    self._edge_factors[missing[broken]],
+                                                    max_break=EDGE_SCRATCH_POINTS)
+            whole = missing[intact]
+            if len(whole):
+                found.ravel()[whole] = True
+                matched = np.concatenate([matched, self._cell_centres[whole]])
+        lap("match")
+        timings["total"] = (time.perf_counter() - t0) * 1e3
+        return CellDetection(~found, int(found.sum()), matched, candidates, timings, gray.shape, motion)
+
+    def _symbols(self, gray: np.ndarray, bands: RowBands | None, lap) -> tuple:
+        """Binarize, extract, approximate and match one frame: the binary image, the polygons,
+        the indices of those the matcher took for the symbol, their centres in the frame's pixels
+        and their areas."""
+        binary = self.binarizer.binarize_bands(gray, bands) if bands is not None else self.binarizer.binarize(gray)
+        lap("binarize")
+        outer = self.extractor.extract_outer(binary)
+        lap("extract")
+        # length_filter_steps's test, without its array round trip: one comparison per contour
+        lo, hi = self._points_range
+        kept = [c for c in outer if lo <= len(c.points) <= hi]
+        polygons = self.approximator.approximate_many(kept)
+        if not isinstance(polygons, PolygonBatch):
+            # a plugin's plain list: drop what is not a polygon, pack once for the vectorized steps
+            polygons = PolygonBatch.from_list([p for p in polygons if len(p) >= 3])
+        lap("approximate")
+        hit = np.zeros(0, np.int64)
+        centres, areas = np.zeros((0, 2)), np.zeros(0)
+        if len(polygons):
+            desc = self.matcher.describe_many(polygons)
+            d = self.matcher.distance_matrix(desc, self.descriptor[None, :])[:, 0]
+            hit = np.flatnonzero(d < self.threshold)
+            if len(hit):
+                centres, areas = centroids(polygons, on_zero_area="nan", return_areas=True)
+                if len(hit) < len(polygons):
+                    centres, areas = centres[hit], areas[hit]
+                if bands is not None:
+                    centres = bands.to_full(centres)
+        lap("describe")
+        return binary, polygons, hit, centres, areas
+
+    def _registered(self, gray: np.ndarray, frame: tuple, hint: CameraMotion, bands: RowBands | None) -> CameraMotion:
+        """The camera's movement since calibration, from the symbols of ``frame``: a coarse fit on
+        the outlines' centres, then the inliers' grey-level centres (sub-pixel) refitted."""
+        if not self.register:
+            return CameraMotion.none()
+        binary, polygons, hit, centres, areas = frame
+        shape = self.calibration.image_shape
+        cal = self.calibration
+        coarse = register(centres, cal.grid, shape, hint=hint.matrix, reference_thumbnail=cal.reference_thumbnail,
+                          frame=gray)
+        if coarse.model == "assumed" or not len(hit):
+            return coarse
+        # the inliers' boxes in the frame, at most REGISTRATION_SYMBOLS of them spread over the grid
+        fine = grey_centres(gray, self._inlier_boxes(polygons, hit, centres, coarse, bands), self._centre_window)
+        good = np.isfinite(fine).all(axis=1)
+        if good.sum() < MIN_SYMBOLS:
+            return coarse
+        # the coarse fit settled any whole-pitch ambiguity: the fine one starts from it
+        fine_motion = register(fine[good], self._registration_grid, shape, hint=coarse.matrix)
+        if coarse.ambiguous_pitch and not fine_motion.ambiguous_pitch:
+            fine_motion = replace(fine_motion, ambiguous_pitch=True, warning=coarse.warning)
+        return fine_motion
+
+    def _inlier_boxes(self, polygons: PolygonBatch, hit: np.ndarray, centres: np.ndarray, coarse: CameraMotion,
+                      bands: RowBands | None) -> np.ndarray:
+        """Bounding boxes ``(x0, y0, x1, y1)`` in the frame's pixels of the hits that ``coarse``
+        pairs with a cell, at most REGISTRATION_SYMBOLS of them spread over the grid."""
+        grid = self.calibration.grid
+        cal_centres = coarse.to_calibration(centres)
+        cells = grid.assign(cal_centres)
+        flat = cells[:, 0] * grid.cols + cells[:, 1]
+        near = np.linalg.norm(grid.centres_px.reshape(-1, 2)[np.maximum(flat, 0)] - cal_centres, axis=1)
+        take = np.flatnonzero((flat >= 0) & (near <= 2 * INLIER_PX))
+        if len(take) > REGISTRATION_SYMBOLS:
+            # evenly over the grid's cells: a spread-out set pins rotation and scale
+            take = take[np.argsort(flat[take], kind="stable")]
+            take = take[np.linspace(0, len(take) - 1, REGISTRATION_SYMBOLS).round().astype(np.int64)]
+        sel = hit[take]
+        lo = np.minimum.reduceat(polygons.points, polygons.starts, axis=0)[sel]
+        hi = np.maximum.reduceat(polygons.points, polygons.starts, axis=0)[sel]
+        if bands is not None:
+            # an outline lies inside one band: all its rows move by that band's shift
+            dy = centres[take, 1] - bands.to_stacked(centres[take])[:, 1]
+            lo[:, 1] += dy
+            hi[:, 1] += dy
+        return np.concatenate([lo, hi], axis=1)
+
+    def __call__(self, image: Any) -> Detection:
+        """The whole detection: :meth:`find_cells`, then the occupancy image and the obstacles."""
+        cal = self.calibration
+        cells = self.find_cells(image)
+        timings = {k: v for k, v in cells.timings_ms.items() if k != "total"}
+        t = time.perf_counter()
+        occupancy = self.mapper.occupancy_image(cal.grid, cells.occupied, cells.image_shape)
+        now = time.perf_counter()
+        timings["map"] = (now - t) * 1e3
+        obstacles = find_obstacles(occupancy, cells.occupied, cal.grid, to_world=cal.pixels_to_world)
+        timings["obstacles"] = (time.perf_counter() - now) * 1e3
+        timings["total"] = cells.timings_ms["total"] + timings["map"] + timings["obstacles"]
+        return Detection(cal, cells.occupied, cells.symbols_found, cells.matched_centres_px, occupancy,
+                         obstacles, timings, self.stage_names, cells.candidates_px, cells.camera)
+
+
+class _Picked(collections.abc.Sequence):
+    """The outlines ``batch[i]`` for ``i`` in ``indices``, looked up only when asked for:
+    :func:`~sbplan.detection.outline_checks.hidden_piece` reads a handful of them per frame, if any."""
+
+    __slots__ = ("batch", "indices")
+
+    def __init__(self, batch: PolygonBatch, indices: np.ndarray):
+        self.batch, self.indices = batch, indices
+
+    def __len__(self) -> int:
+        return len(self.indices)
+
+    def __getitem__(self, i):
+        if isinstance(i, slice):
+            return [self.batch[int(j)] for j in self.indices[i]]
+        return self.batch[int(self.indices[i])]
+
+
+def detect(image: Any, calibration: Calibration | str | os.PathLike, **stages: Any) -> Detection:
+    """Detect the occupied cells and obstacles of one image.
+
+    Parameters
+    ----------
+    image : ndarray of shape (H, W) or (H, W, 3), or a path
+        The current image, from the camera of the calibration.
+    calibration : Calibration or path of a calibration JSON
+    **stages : str or Stage
+        ``binarizer``, ``extractor``, ``approximator``, ``matcher``, ``mapper`` overrides.
+
+    Raises
+    ------
+    DetectionError
+        The image's size differs from the calibration's.
+    """
+    if not isinstance(calibration, Calibration):
+        calibration = load_calibration(calibration)
+    return Detector(calibration, **stages)(image)

@@ -1,0 +1,517 @@
+"""Per-frame registration: how the camera moved since calibration, from the symbol grid itself.
+
+A ceiling camera vibrates, gets bumped and drifts. Every frame is registered to the calibration
+before any cell is decided: the symbols the matcher found in the frame are paired with their
+calibrated cells and a transform from calibration pixels to frame pixels is fitted to the pairs.
+
+Pairing. The grid is periodic, so a found symbol is paired with the cell nearest to it after a
+coarse estimate (the last frame's movement, or none): that pairing is right while no symbol moved
+by half a pitch. The fit is RANSAC over a similarity (shift, rotation, scale; OpenCV's
+``estimateAffinePartial2D``, seeded), so that symbols in the wrong place and cells whose symbol an
+obstacle hides do not bias it; the pairs are then made again with the fitted transform and the
+inliers refitted in closed form (least squares), twice. A homography replaces the similarity where
+enough symbols show that it fits clearly better (a camera that tilted).
+
+The one-pitch ambiguity. Moved by a whole pitch, the grid looks the same: the pairing would call it
+unmoved. Two things keep that from giving a wrong answer. Movements of more than
+:data:`MAX_MOVEMENT_PITCH` of a pitch are refused (the pairing is no longer sure). And among the
+transforms a whole pitch apart, the one that puts the most found symbols on cells of the grid is
+taken; where another one puts as many there (a whole edge row or column out of sight or hidden), the
+floor's own texture between the symbols decides: the calibration keeps a thumbnail of the
+reference, and the movement under which the frame's floor correlates best with it is taken (a
+movement of a pitch is then refused as too large). Where the texture cannot tell either (a floor
+without texture, an old calibration file without the thumbnail) the smaller movement is taken,
+since a camera on a mount moves by far less than a pitch between calibration and use, and the
+choice is reported (``ambiguous_pitch``).
+
+Limits (documented in docs/operator-guide.md): above :data:`WARN_SHIFT_PX`, :data:`WARN_ROTATION_DEG`
+or :data:`WARN_SCALE` the movement is compensated and a warning says so; with fewer than
+:data:`MIN_SYMBOLS` symbols paired (unless those few sit where the coarse estimate puts them: a
+mostly covered floor), a residual above :data:`MAX_RESIDUAL_PX`, or a movement above
+:data:`MAX_MOVEMENT_PITCH` of the pitch, :class:`~sbplan.errors.CameraMotionError` is raised.
+
+Coordinates are pixels ``(x, y)``; transforms are 3x3 matrices acting on ``(x, y, 1)`` that map
+calibration pixels to frame pixels.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import cv2
+import numpy as np
+
+from ..errors import CameraMotionError
+
+if TYPE_CHECKING:
+    from .grid import Grid
+
+__all__ = ["CameraMotion", "register", "apply", "thumbnail", "grey_centres", "centre_window", "MIN_SYMBOLS", "MAX_RESIDUAL_PX", "MAX_MOVEMENT_PITCH",
+           "WARN_SHIFT_PX", "WARN_ROTATION_DEG", "WARN_SCALE"]
+
+#: Fewest symbols paired with cells for a movement to be estimated (a similarity needs two; four
+#: leave room for one bad pair to show).
+MIN_SYMBOLS = 4
+#: The symbols that move together must be at least this share of those paired with cells: an
+#: obstacle hides symbols (they are not found) but seldom puts symbol-like shapes near cells.
+MIN_INLIER_SHARE = 0.5
+#: Largest root-mean-square distance (pixels) between the paired symbols' centres and their cells'
+#: moved centres: above it the symbols do not move together (a changed view, another floor).
+MAX_RESIDUAL_PX = 1.5
+#: Largest movement of any cell centre, as a fraction of the grid's pitch: beyond it a symbol can
+#: no longer be paired with its own cell with certainty.
+MAX_MOVEMENT_PITCH = 0.25
+#: Movements above these are compensated and reported with a warning (recalibrate soon).
+WARN_SHIFT_PX = 2.0
+WARN_ROTATION_DEG = 0.2
+WARN_SCALE = 0.004
+#: A symbol's centre is an inlier when it lies this close (pixels) to its cell's moved centre, or
+#: RANSAC_PITCH of the pitch when that is more (RANSAC's threshold, then the refits').
+INLIER_PX = 1.5
+RANSAC_PITCH = 0.02
+#: A homography is preferred over the similarity when it lowers the residual below this fraction
+#: of the similarity's, on at least HOMOGRAPHY_MIN_SYMBOLS pairs.
+HOMOGRAPHY_GAIN = 0.6
+HOMOGRAPHY_MIN_SYMBOLS = 12
+#: The last refit keeps the pairs within TRIM_SIGMAS robust deviations of the median residual
+#: (or TRIM_FLOOR_PX, when that is more).
+TRIM_SIGMAS = 3.0
+TRIM_FLOOR_PX = 0.25
+#: Pairing: a centre more than this fraction of a pitch from the nearest cell is not paired.
+PAIR_PITCH = 0.4
+
+
+@dataclass(frozen=True, eq=False)
+class CameraMotion:
+    """How the camera moved since calibration, as one frame shows it.
+
+    Attributes
+    ----------
+    matrix : ndarray of shape (3, 3)
+        Calibration pixels ``(x, y, 1)`` -> this frame's pixels.
+    shift_px : (float, float)
+        Where the image centre of the calibration went, minus where it was: ``(dx, dy)`` pixels.
+    rotation_deg : float
+        Rotation of the view, counter-clockwise as displayed.
+    scale : float
+        Size of the view over its size at calibration (> 1: the floor looks larger, camera closer).
+    residual_px : float
+        Root-mean-square distance between the paired symbols' centres and the moved cell centres.
+    symbols_used : int
+        Symbols paired with cells and kept by the robust fit (the inliers).
+    max_movement_px : float
+        Largest movement of any cell centre.
+    model : str
+        ``"none"`` (identity: nothing estimated), ``"similarity"``, ``"homography"`` or
+        ``"assumed"`` (too few symbols to estimate; the coarse estimate was kept because the few
+        found sit where it puts them).
+    warning : str or None
+        Set when the movement exceeds the warning levels, or the estimate was assumed or ambiguous.
+    ambiguous_pitch : bool
+        Another transform a whole pitch away put as many found symbols on the grid.
+    """
+
+    matrix: np.ndarray
+    shift_px: tuple[float, float]
+    rotation_deg: float
+    scale: float
+    residual_px: float
+    symbols_used: int
+    max_movement_px: float
+    model: str
+    warning: str | None = None
+    ambiguous_pitch: bool = False
+
+    @classmethod
+    def none(cls) -> "CameraMotion":
+        """No movement (registration off)."""
+        return cls(np.eye(3), (0.0, 0.0), 0.0, 1.0, 0.0, 0, 0.0, "none")
+
+    @property
+    def moved(self) -> bool:
+        """True unless the transform is exactly the identity."""
+        return not np.array_equal(self.matrix, np.eye(3))
+
+    def to_frame(self, xy: np.ndarray) -> np.ndarray:
+        """Calibration pixels ``(..., 2)`` -> this frame's pixels."""
+        return apply(self.matrix, xy)
+
+    def to_calibration(self, xy: np.ndarray) -> np.ndarray:
+        """This frame's pixels ``(..., 2)`` -> calibration pixels."""
+        return apply(self._inverse, xy)
+
+    @property
+    def _inverse(self) -> np.ndarray:
+        inv = self.__dict__.get("_inv")
+        if inv is None:
+            inv = np.linalg.inv(self.matrix)
+            object.__setattr__(self, "_inv", inv)
+        return inv
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "shift_px": [round(self.shift_px[0], 4), round(self.shift_px[1], 4)],
+            "rotation_deg": round(self.rotation_deg, 5),
+            "scale": round(self.scale, 6),
+            "residual_px": round(self.residual_px, 4),
+            "symbols_used": self.symbols_used,
+            "max_movement_px": round(self.max_movement_px, 4),
+            "model": self.model,
+            "matrix": np.round(self.matrix, 10).tolist(),
+            "warning": self.warning,
+            "ambiguous_pitch": self.ambiguous_pitch,
+        }
+
+    def summary(self) -> str:
+        """One line for people: ``camera: shift (dx, dy) px, rotation r deg, scale s since calibration
+        (residual e px, n symbols, model)``."""
+        if self.model == "none":
+            return "camera: movement not estimated"
+        return (f"camera: shift ({self.shift_px[0]:+.2f}, {self.shift_px[1]:+.2f}) px, rotation "
+                f"{self.rotation_deg:+.3f} deg, scale {self.scale:.4f} since calibration "
+                f"(residual {self.residual_px:.2f} px, {self.symbols_used} symbols, {self.model})")
+
+
+def apply(matrix: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    """``xy`` (..., 2) mapped by the 3x3 ``matrix`` (projective division when its last row is not
+    ``(0, 0, 1)``)."""
+    xy = np.asarray(xy, dtype=np.float64)
+    out = xy @ matrix[:2, :2].T + matrix[:2, 2]
+    if matrix[2, 0] or matrix[2, 1]:
+        w = xy @ matrix[2, :2] + matrix[2, 2]
+        out /= w[..., None]
+    return out
+
+
+def _similarity_lsq(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
+    """The least-squares similarity ``dst ~ s R src + t`` (closed form, as complex numbers)."""
+    ms, md = src.mean(axis=0), dst.mean(axis=0)
+    zs = (src[:, 0] - ms[0]) + 1j * (src[:, 1] - ms[1])
+    zd = (dst[:, 0] - md[0]) + 1j * (dst[:, 1] - md[1])
+    w = np.vdot(zs, zd) / max(float(np.vdot(zs, zs).real), 1e-12)
+    a, b = float(w.real), float(w.imag)
+    m = np.eye(3)
+    m[:2, :2] = [[a, -b], [b, a]]
+    m[:2, 2] = md - m[:2, :2] @ ms
+    return m
+
+
+def _pair(centres: np.ndarray, grid: "Grid", to_calibration: np.ndarray, pitch: float) -> tuple[np.ndarray, np.ndarray]:
+    """Each centre's nearest cell (flat index, -1 when none is within PAIR_PITCH of a pitch), with
+    the centres first mapped to calibration pixels by ``to_calibration``; and the distances."""
+    if not len(centres):
+        return np.zeros(0, np.int64), np.zeros(0)
+    guess = apply(to_calibration, centres)
+    lattice = grid.px_to_lattice(guess)
+    cell = np.rint(lattice).astype(np.int64)
+    col, row = cell[:, 0], cell[:, 1]
+    inside = (row >= 0) & (row < grid.rows) & (col >= 0) & (col < grid.cols)
+    flat = np.where(inside, row * grid.cols + col, -1)
+    ref = grid.centres_px.reshape(-1, 2)
+    d = np.full(len(centres), np.inf)
+    d[inside] = np.linalg.norm(ref[flat[inside]] - guess[inside], axis=1)
+    flat[d > PAIR_PITCH * pitch] = -1
+    return flat, d
+
+
+def register(centres_px: np.ndarray, grid: "Grid", image_shape: tuple[int, int], *,
+             hint: np.ndarray | None = None, seed: int = 0, reference_thumbnail: np.ndarray | None = None,
+             frame: np.ndarray | None = None) -> CameraMotion:
+    """Estimate the camera's movement since calibration from the symbol centres found in a frame.
+
+    Parameters
+    ----------
+    centres_px : ndarray of shape (N, 2)
+        Centres ``(x, y)`` of the outlines the matcher took for symbols, in the frame's pixels.
+    grid : Grid
+        The calibrated grid (cell centres in calibration pixels).
+    image_shape : (H, W)
+        The frame's shape (the movement is reported about its centre).
+    hint : ndarray (3, 3), optional
+        A coarse estimate (calibration -> frame), e.g. the last frame's; default no movement.
+    seed : int
+        Seed of RANSAC's sampling.
+    reference_thumbnail : ndarray, optional
+        The calibration's :func:`thumbnail` of the reference; with ``frame`` (the grey frame, (H, W)
+        uint8) it decides between movements a whole pitch apart that the symbols cannot tell apart.
+
+    Returns
+    -------
+    CameraMotion
+
+    Raises
+    ------
+    CameraMotionError
+        Too few symbols to estimate the movement, symbols that do not move together, or a
+        movement too large to pair symbols with their cells with certainty.
+    """
+    centres = np.asarray(centres_px, dtype=np.float64).reshape(-1, 2)
+    hint = np.eye(3) if hint is None else np.asarray(hint, dtype=np.float64)
+    pitch = float(min(grid.pitch_px))
+    ref = grid.centres_px.reshape(-1, 2)
+    finite = np.isfinite(centres).all(axis=1)
+    centres = centres[finite]
+    inlier_px = max(INLIER_PX, RANSAC_PITCH * pitch)
+
+    flat, _ = _pair(centres, grid, np.linalg.inv(hint), pitch)
+    paired = flat >= 0
+    n_paired = int(paired.sum())
+    if n_paired < MIN_SYMBOLS:
+        return _few_symbols(centres[paired], ref[flat[paired]], hint, image_shape, pitch, inlier_px,
+                            len(centres))
+    cv2.setRNGSeed(int(seed))
+    m2, inl = cv2.estimateAffinePartial2D(ref[flat[paired]], centres[paired], method=cv2.RANSAC,
+                                          ransacReprojThreshold=inlier_px, maxIters=500, confidence=0.999,
+                                          refineIters=0)
+    if m2 is None:
+        raise CameraMotionError(f"cannot estimate the camera's movement: the {n_paired} symbols found do not "
+                                f"move together; recalibrate on the empty floor (sbplan calibrate)")
+    matrix = np.vstack([m2, [0.0, 0.0, 1.0]])
+    # pair again with the fitted movement and refit on the inliers, in closed form
+    for _ in range(2):
+        flat, _ = _pair(centres, grid, np.linalg.inv(matrix), pitch)
+        ok = flat >= 0
+        resid = np.linalg.norm(apply(matrix, ref[flat[ok]]) - centres[ok], axis=1)
+        keep = np.flatnonzero(ok)[resid <= 2 * inlier_px]
+        if len(keep) < MIN_SYMBOLS:
+            break
+        matrix = _similarity_lsq(ref[flat[keep]], centres[keep])
+    flat, _ = _pair(centres, grid, np.linalg.inv(matrix), pitch)
+    ok = np.flatnonzero(flat >= 0)
+    resid = np.linalg.norm(apply(matrix, ref[flat[ok]]) - centres[ok], axis=1)
+    inliers = ok[resid <= inlier_px]
+    model = "similarity"
+    if len(inliers) < max(MIN_SYMBOLS, MIN_INLIER_SHARE * n_paired):
+        raise CameraMotionError(f"cannot estimate the camera's movement: only {len(inliers)} of the {n_paired} "
+                                f"symbols found near their cells move together; the view changed; "
+                                f"recalibrate on the empty floor (sbplan calibrate)")
+    src, dst = ref[flat[inliers]], centres[inliers]
+    matrix = _similarity_lsq(src, dst)
+    # Centres pulled by something dark beside their symbol (an obstacle, a shadow's core) err by a
+    # fraction of a pixel, inside RANSAC's threshold: trim what strays well beyond the others.
+    resid = np.linalg.norm(apply(matrix, src) - dst, axis=1)
+    trim = resid <= max(TRIM_FLOOR_PX, TRIM_SIGMAS * 1.4826 * float(np.median(resid)))
+    if MIN_SYMBOLS <= trim.sum() < len(trim):
+        inliers, src, dst = inliers[trim], src[trim], dst[trim]
+        matrix = _similarity_lsq(src, dst)
+    rms = float(np.sqrt(np.mean(np.sum((apply(matrix, src) - dst) ** 2, axis=1))))
+    if len(inliers) >= HOMOGRAPHY_MIN_SYMBOLS and rms > 0.2:
+        h, _ = cv2.findHomography(src, dst, 0)
+        if h is not None and np.isfinite(h).all():
+            h = h / h[2, 2]
+            rms_h = float(np.sqrt(np.mean(np.sum((apply(h, src) - dst) ** 2, axis=1))))
+            if rms_h < HOMOGRAPHY_GAIN * rms:
+                matrix, rms, model = h, rms_h, "homography"
+    matrix, ambiguous = _resolve_pitch(matrix, _pitch_ambiguity(flat[inliers], grid), grid,
+                                       reference_thumbnail, frame)
+    return _motion(matrix, rms, len(inliers), model, image_shape, grid, pitch, ambiguous)
+
+
+def _few_symbols(found: np.ndarray, cells: np.ndarray, hint: np.ndarray, image_shape, pitch: float,
+                 inlier_px: float, n_found: int) -> CameraMotion:
+    """Fewer than MIN_SYMBOLS paired: a mostly covered floor when the few sit where the coarse
+    estimate puts them (then that estimate stands), else nothing can be said."""
+    if len(found):
+        resid = np.linalg.norm(apply(hint, cells) - found, axis=1)
+        if (resid <= inlier_px).all():
+            rms = float(np.sqrt(np.mean(resid ** 2)))
+            motion = _motion(hint, rms, len(found), "assumed", image_shape, None, pitch, False)
+            warning = (f"only {len(found)} symbol{'s' if len(found) != 1 else ''} visible: the floor is mostly "
+                       f"covered; the camera is assumed not to have moved since the last estimate")
+            return CameraMotion(**{**motion.__dict__, "warning": warning})
+    if n_found >= MIN_SYMBOLS:
+        raise CameraMotionError(
+            f"camera moved since calibration: {n_found} symbols found but only {len(found)} near a cell of the "
+            f"grid; a movement of more than {MAX_MOVEMENT_PITCH:g} of the grid's {pitch:.0f} px pitch cannot be "
+            f"compensated; recalibrate with 'sbplan calibrate REFERENCE.png' on the empty floor")
+    raise CameraMotionError(
+        f"cannot estimate the camera's movement: {n_found} symbol{'s' if n_found != 1 else ''} found "
+        f"(at least {MIN_SYMBOLS} needed); the view changed, the camera failed or the floor is covered; "
+        f"recalibrate on the empty floor (sbplan calibrate)")
+
+
+def _pitch_ambiguity(cells: np.ndarray, grid: "Grid") -> list[tuple[int, int]]:
+    """The pairings a whole pitch away, ``(d_row, d_col)``, that would put as many of the inlier
+    symbols on the grid: the symbols alone cannot tell those movements from the one found."""
+    row, col = np.divmod(cells, grid.cols)
+    n = len(cells)
+    return [(dr, dc) for dr in (-1, 0, 1) for dc in (-1, 0, 1)
+            if (dr or dc) and int(((row + dr >= 0) & (row + dr < grid.rows) & (col + dc >= 0)
+                                   & (col + dc < grid.cols)).sum()) >= n]
+
+
+#: The reference thumbnail is the reference image made this many times smaller.
+THUMBNAIL_FACTOR = 4
+#: The floor's texture decides between movements a pitch apart when the best one's correlation
+#: beats the next one's by this much; below it the smaller movement is kept, with a warning.
+THUMBNAIL_MARGIN = 0.1
+
+
+def thumbnail(gray: np.ndarray) -> np.ndarray:
+    """The grey image made :data:`THUMBNAIL_FACTOR` times smaller (area average): what calibration
+    keeps of the reference to tell movements a pitch apart by the floor's own texture."""
+    h, w = gray.shape
+    f = THUMBNAIL_FACTOR
+    return cv2.resize(gray, (max(1, w // f), max(1, h // f)), interpolation=cv2.INTER_AREA)
+
+
+def _texture(img: np.ndarray) -> np.ndarray:
+    """The floor's texture: the image less its local mean (light changes slowly, texture does not)."""
+    img = img.astype(np.float32)
+    return img - cv2.blur(img, (9, 9), borderType=cv2.BORDER_REFLECT)
+
+
+def _view_scores(reference_thumb: np.ndarray, frame: np.ndarray, matrices: list[np.ndarray]) -> list[float]:
+    """How well the frame's floor texture matches the reference's moved by each matrix (normalized
+    correlation over the floor between symbols, on thumbnails)."""
+    f = THUMBNAIL_FACTOR
+    th, tw = reference_thumb.shape
+    small = cv2.resize(frame, (tw, th), interpolation=cv2.INTER_AREA)
+    tex = _texture(small)
+    # the floor between the symbols: the printed grid looks the same a pitch away, its floor does not
+    ref = reference_thumb.astype(np.float32)
+    floor = cv2.erode((ref > np.percentile(ref, 40)).astype(np.uint8), np.ones((5, 5), np.uint8))
+    s = np.diag([1.0 / f, 1.0 / f, 1.0])
+    scores = []
+    for m in matrices:
+        mt = s @ m @ np.linalg.inv(s)
+        warped = cv2.warpPerspective(_texture(reference_thumb), mt, (tw, th), flags=cv2.INTER_LINEAR,
+                                     borderMode=cv2.BORDER_CONSTANT, borderValue=np.nan)
+        mask = cv2.warpPerspective(floor, mt, (tw, th), flags=cv2.INTER_NEAREST) > 0
+        mask &= np.isfinite(warped)
+        if mask.sum() < 50:
+            scores.append(-1.0)
+            continue
+        a, b = tex[mask], warped[mask]
+        a, b = a - a.mean(), b - b.mean()
+        scores.append(float(np.dot(a, b) / max(np.sqrt(np.dot(a, a) * np.dot(b, b)), 1e-6)))
+    return scores
+
+
+def _resolve_pitch(matrix: np.ndarray, ambiguous: list[tuple[int, int]], grid: "Grid",
+                   reference_thumb: np.ndarray | None, frame: np.ndarray | None) -> tuple[np.ndarray, bool]:
+    """Choose between ``matrix`` and the movements a whole pitch away that the symbols cannot tell
+    apart, by the floor's texture (needs the calibration's reference thumbnail and the frame).
+    Returns the chosen matrix and whether the choice stays ambiguous."""
+    if not ambiguous or reference_thumb is None or frame is None:
+        return matrix, bool(ambiguous)
+    # a whole pitch of the lattice, as calibration pixels
+    c = grid.centres_px
+    step_col = np.median(np.diff(c, axis=1).reshape(-1, 2), axis=0) if grid.cols > 1 else np.zeros(2)
+    step_row = np.median(np.diff(c, axis=0).reshape(-1, 2), axis=0) if grid.rows > 1 else np.zeros(2)
+    candidates = [matrix]
+    for dr, dc in ambiguous:
+        t = np.eye(3)
+        # pairing each symbol with the cell (dr, dc) away moves the calibration's view back by that
+        t[:2, 2] = -(dr * step_row + dc * step_col)
+        candidates.append(matrix @ t)
+    scores = _view_scores(reference_thumb, frame, candidates)
+    order = np.argsort(scores)[::-1]
+    best, second = int(order[0]), int(order[1])
+    if scores[best] - scores[second] < THUMBNAIL_MARGIN:
+        return matrix, True
+    return candidates[best], False
+
+
+def _motion(matrix: np.ndarray, rms: float, used: int, model: str, image_shape, grid: "Grid | None", pitch: float,
+            ambiguous: bool) -> CameraMotion:
+    h, w = int(image_shape[0]), int(image_shape[1])
+    c = np.array([(w - 1) / 2.0, (h - 1) / 2.0])
+    moved_c = apply(matrix, c)
+    # the local linear part at the centre (exact for a similarity)
+    eps = 1.0
+    jx = (apply(matrix, c + (eps, 0.0)) - moved_c) / eps
+    jy = (apply(matrix, c + (0.0, eps)) - moved_c) / eps
+    lin = np.column_stack([jx, jy])
+    rotation = math.degrees(math.atan2(lin[0, 1] - lin[1, 0], lin[0, 0] + lin[1, 1]))
+    scale = math.sqrt(abs(float(np.linalg.det(lin))))
+    shift = (float(moved_c[0] - c[0]), float(moved_c[1] - c[1]))
+    if grid is not None:
+        ref = grid.centres_px.reshape(-1, 2)
+        movement = float(np.max(np.linalg.norm(apply(matrix, ref) - ref, axis=1)))
+    else:
+        movement = float(math.hypot(*shift))
+    if rms > MAX_RESIDUAL_PX:
+        raise CameraMotionError(
+            f"cannot trust the camera's movement: the {used} symbols found fit it only within {rms:.2f} px "
+            f"(at most {MAX_RESIDUAL_PX} px); the view changed; recalibrate on the empty floor (sbplan calibrate)")
+    if movement > MAX_MOVEMENT_PITCH * pitch:
+        raise CameraMotionError(
+            f"camera moved by {movement:.1f} px since calibration (shift ({shift[0]:+.1f}, {shift[1]:+.1f}) px, "
+            f"rotation {rotation:+.2f} deg, scale {scale:.3f}): more than {MAX_MOVEMENT_PITCH:g} of the grid's "
+            f"{pitch:.0f} px pitch, too far to pair symbols with their cells with certainty; recalibrate with "
+            f"'sbplan calibrate REFERENCE.png' on the empty floor")
+    warning = None
+    if math.hypot(*shift) > WARN_SHIFT_PX or abs(rotation) > WARN_ROTATION_DEG or abs(scale - 1) > WARN_SCALE:
+        warning = (f"camera moved since calibration (shift ({shift[0]:+.1f}, {shift[1]:+.1f}) px, rotation "
+                   f"{rotation:+.2f} deg, scale {scale:.4f}); detection compensated it; re-anchor the calibration "
+                   f"with 'sbplan calibrate --update CALIBRATION.json FRAME.png'")
+    if ambiguous:
+        note = ("a whole edge row or column of symbols is hidden and the floor's texture cannot tell: a "
+                "movement of a whole pitch would fit the symbols as well; the smaller movement was taken")
+        warning = note if warning is None else f"{warning}; {note}"
+    return CameraMotion(matrix, shift, rotation, scale, rms, used, movement, model, warning, ambiguous)
+
+
+#: Pixels of floor kept around a symbol's bounding box when its grey-level centre is measured.
+CENTRE_MARGIN_PX = 3
+#: Grey levels below the floor's at which ink starts to weigh (keeps floor grain out of the centre).
+CENTRE_FLOOR_NOISE = 10.0
+
+
+def centre_window(polygons) -> int:
+    """The side of the square :func:`grey_centres` reads around symbols whose outlines are
+    ``polygons``: the largest extent plus the margin on both sides. Calibration and detection
+    use the same side, so that the floor read around a symbol weighs the same in both."""
+    extent = max(float(np.ptp(np.asarray(p, np.float64), axis=0).max()) for p in polygons)
+    return int(np.ceil(extent)) + 2 * CENTRE_MARGIN_PX + 1
+
+
+def grey_centres(gray: np.ndarray, boxes: np.ndarray, side: int) -> np.ndarray:
+    """Sub-pixel centres of dark symbols: the centre of darkness inside each box.
+
+    A square of ``side`` pixels (:func:`centre_window`) centred on each box is read from the grey image;
+    the floor level is the mean of the box's border ring, and every pixel weighs by how much darker
+    than that floor it is (less :data:`CENTRE_FLOOR_NOISE`). Antialiased edges weigh in part, so the
+    centre follows sub-pixel movements that the binary outline's pixels cannot show (a polygon's
+    centre of area errs by 0.1 to 0.3 px, the same way on every symbol of a regular grid; this by
+    about 0.05 px). All boxes are read at one size, in one gather.
+
+    Parameters
+    ----------
+    gray : ndarray of shape (H, W), uint8
+    boxes : ndarray of shape (N, 4)
+        ``(x0, y0, x1, y1)`` pixel bounds (inclusive) of each symbol.
+    side : int
+        The square's side (the same for the reference and every frame).
+
+    Returns
+    -------
+    ndarray of shape (N, 2), float64 ``(x, y)``; NaN for a box that leaves the image.
+    """
+    boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
+    out = np.full((len(boxes), 2), np.nan)
+    if not len(boxes):
+        return out
+    h, w = gray.shape
+    mid = np.rint((boxes[:, :2] + boxes[:, 2:]) / 2).astype(np.int64)
+    x0, y0 = mid[:, 0] - side // 2, mid[:, 1] - side // 2
+    inside = (x0 >= 0) & (y0 >= 0) & (x0 + side <= w) & (y0 + side <= h)
+    if not inside.any():
+        return out
+    win = np.lib.stride_tricks.sliding_window_view(gray, (side, side))[y0[inside], x0[inside]].astype(np.float32)
+    ring = np.concatenate([win[:, 0, :], win[:, -1, :], win[:, 1:-1, 0], win[:, 1:-1, -1]], axis=1)
+    floor = ring.mean(axis=1)
+    wt = np.maximum(floor[:, None, None] - CENTRE_FLOOR_NOISE - win, 0)
+    total = wt.sum(axis=(1, 2))
+    r = np.arange(side, dtype=np.float32)
+    cx = (wt.sum(axis=1) @ r) / np.maximum(total, 1e-6)
+    cy = (wt.sum(axis=2) @ r) / np.maximum(total, 1e-6)
+    good = total > 0
+    res = np.full((int(inside.sum()), 2), np.nan)
+    res[good, 0] = x0[inside][good] + cx[good]
+    res[good, 1] = y0[inside][good] + cy[good]
+    out[inside] = res
+    return out

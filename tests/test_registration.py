@@ -1,0 +1,205 @@
+"""Per-frame registration (sbplan.detection.registration) with the real renderer: a camera that moved after
+calibration gives the same cells, the movement is reported, and beyond the limits detection
+refuses with CameraMotionError instead of answering."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import cv2
+import numpy as np
+import pytest
+
+from sbplan.detection.calibration import Calibration, calibrate, load_calibration, update_calibration
+from sbplan.detection import Detector
+from sbplan.errors import CameraMotionError
+from sbplan.bench.evaluation import score_cells
+from sbplan.detection.registration import CameraMotion, MAX_MOVEMENT_PITCH, apply, register
+from sbplan.synth import FloorSpec, SceneSpec, render_reference, render_scene
+from sbplan.synth.camera import motion_matrix
+
+FLOOR = FloorSpec(width=800, height=600, cols=8, rows=5)
+
+
+@pytest.fixture(scope="module")
+def calibration() -> Calibration:
+    return calibrate(render_reference(FLOOR, seed=0))
+
+
+def _scene(seed: int = 3, n_obstacles: int = 3, **effects):
+    return render_scene(FLOOR, SceneSpec(n_obstacles=n_obstacles, effects=effects), seed=seed)
+
+
+def _truth_motion(truth) -> tuple[float, float, float, float]:
+    m = truth.params["camera"].get("motion")
+    if m is None:
+        return 0.0, 0.0, 0.0, 1.0
+    return m["shift_px"][0], m["shift_px"][1], m["rotation_deg"], m["scale"]
+
+
+@pytest.mark.parametrize("effects", [
+    {"motion": (0.6, -0.4, 0.0, 1.0)},    # sub-pixel
+    {"motion": (6.4, 4.8, 0.0, 1.0)},     # 8 px
+    {"motion": (0.0, 0.0, 0.5, 1.0)},     # rotation
+    {"motion": (0.0, 0.0, 0.0, 1.01)},    # zoom in
+    {"motion": (-3.0, 2.0, 0.0, 0.99)},   # zoom out and shift
+    {"vibration": 1.0},                   # random within the limits
+    {"drift": 1.0},                       # a point along a slow drift
+], ids=["subpixel", "shift-8", "rotation", "zoom-in", "zoom-out", "vibration", "drift"])
+def test_moved_camera_gives_the_truths_cells_and_the_movement(calibration, effects):
+    image, truth = _scene(**effects)
+    cells = Detector(calibration).find_cells(image)
+    assert score_cells(cells.occupied, truth.cells).f1 == 1.0
+    dx, dy, rot, scale = _truth_motion(truth)
+    cam = cells.camera
+    assert abs(cam.shift_px[0] - dx) <= 0.2 and abs(cam.shift_px[1] - dy) <= 0.2
+    assert abs(cam.rotation_deg - rot) <= 0.02
+    assert abs(cam.scale - scale) <= 2e-4
+    assert cam.residual_px < 0.2 and cam.symbols_used >= 10
+
+
+def test_moved_camera_gives_the_unmoved_cameras_obstacles_in_metres(calibration):
+    still, _ = _scene()
+    moved, _ = _scene(motion=(-5.0, 3.0, 0.3, 1.004))
+    a, b = Detector(calibration)(still), Detector(calibration)(moved)
+    assert a.occupied_cells == b.occupied_cells
+    assert [o.cells for o in a.obstacles] == [o.cells for o in b.obstacles]
+    for oa, ob in zip(a.obstacles, b.obstacles):
+        np.testing.assert_allclose(oa.to_json()["centre_m"], ob.to_json()["centre_m"], atol=0.01)
+
+
+def test_an_unmoved_camera_reads_as_unmoved_without_warning(calibration):
+    image, _ = _scene()
+    cam = Detector(calibration).find_cells(image).camera
+    assert np.hypot(*cam.shift_px) < 0.1 and abs(cam.rotation_deg) < 0.01
+    assert cam.warning is None and not cam.ambiguous_pitch
+
+
+def test_a_moved_camera_is_reported_in_the_json_with_a_warning(calibration):
+    image, _ = _scene(motion=(4.0, -3.0, 0.4, 1.0))
+    data = Detector(calibration)(image).to_json()["camera"]
+    assert data["model"] == "similarity" and data["symbols_used"] >= 10
+    assert abs(data["shift_px"][0] - 4.0) < 0.2 and abs(data["rotation_deg"] - 0.4) < 0.02
+    assert "calibrate --update" in data["warning"]
+
+
+def test_registration_follows_a_drifting_sequence_with_one_detector(calibration):
+    det = Detector(calibration)
+    for k in range(6):
+        motion = (1.5 * k, -1.0 * k, 0.08 * k, 1.0 + 0.002 * k)
+        image, truth = _scene(seed=5, **{"motion": motion})
+        cells = det.find_cells(image)
+        assert score_cells(cells.occupied, truth.cells).f1 == 1.0
+        assert abs(cells.camera.shift_px[0] - motion[0]) < 0.2
+
+
+# -- the limits: each side --------------------------------------------------------------------------
+def test_just_inside_the_movement_limit_detection_answers(calibration):
+    pitch = min(calibration.grid.pitch_px)
+    image, truth = _scene(motion=(0.0, 0.8 * MAX_MOVEMENT_PITCH * pitch, 0.0, 1.0))
+    cells = Detector(calibration).find_cells(image)
+    assert score_cells(cells.occupied, truth.cells).f1 == 1.0
+
+
+def test_beyond_the_movement_limit_detection_refuses(calibration):
+    pitch = min(calibration.grid.pitch_px)
+    image, _ = _scene(motion=(0.0, 1.3 * MAX_MOVEMENT_PITCH * pitch, 0.0, 1.0))
+    with pytest.raises(CameraMotionError, match="recalibrate"):
+        Detector(calibration).find_cells(image)
+
+
+def test_a_whole_pitch_is_not_mistaken_for_no_movement(calibration):
+    # the grid looks the same a pitch away: the floor's texture (the calibration's thumbnail) tells
+    image, _ = _scene(motion=(calibration.grid.pitch_px[0], 0.0, 0.0, 1.0))
+    with pytest.raises(CameraMotionError, match="camera moved by"):
+        Detector(calibration).find_cells(image)
+
+
+@pytest.mark.parametrize("value", [0, 255])
+def test_a_blank_frame_is_refused_not_called_occupied(calibration, value):
+    blank = np.full(calibration.image_shape, value, np.uint8)
+    with pytest.raises(CameraMotionError, match="symbol"):
+        Detector(calibration).find_cells(blank)
+
+
+def test_a_mostly_covered_floor_keeps_the_last_pose_and_says_so(calibration):
+    # three symbols in sight, where the last pose puts them: a covered floor, not a moved camera
+    ref = render_reference(FLOOR, seed=0)
+    covered = np.full_like(ref, 90)
+    centres = calibration.grid.centres_px
+    for r, c in [(0, 0), (2, 4), (4, 7)]:
+        x, y = np.rint(centres[r, c]).astype(int)
+        covered[y - 40:y + 40, x - 40:x + 40] = ref[y - 40:y + 40, x - 40:x + 40]
+    cells = Detector(calibration).find_cells(covered)
+    assert cells.camera.model == "assumed" and "mostly covered" in cells.camera.warning
+    assert int(cells.occupied.sum()) == calibration.symbols_expected - 3
+
+
+def test_register_rejects_symbols_that_do_not_move_together(calibration):
+    rng = np.random.default_rng(0)
+    centres = calibration.grid.centres_px.reshape(-1, 2) + rng.uniform(-12, 12, (40, 2))
+    with pytest.raises(CameraMotionError):
+        register(centres, calibration.grid, calibration.image_shape)
+
+
+def test_register_ignores_outliers(calibration):
+    true = motion_matrix(FLOOR.width, FLOOR.height, (3.0, -2.0, 0.3, 1.002))
+    centres = apply(true, calibration.grid.centres_px.reshape(-1, 2))
+    centres[::5] += 9.0  # symbols found in the wrong place
+    centres = np.delete(centres, np.s_[10:25], axis=0)  # an obstacle hides a block
+    motion = register(centres, calibration.grid, calibration.image_shape)
+    np.testing.assert_allclose(motion.matrix, true, atol=1e-6)
+
+
+# -- re-anchoring -----------------------------------------------------------------------------------
+def test_update_moves_the_calibration_to_the_new_pose(calibration):
+    image, truth = _scene(motion=(5.0, -4.0, 0.35, 1.003))
+    updated, motion = update_calibration(calibration, image)
+    assert abs(motion.rotation_deg - 0.35) < 0.02
+    cells = Detector(updated).find_cells(image)
+    assert np.hypot(*cells.camera.shift_px) < 0.1 and abs(cells.camera.rotation_deg) < 0.01
+    assert score_cells(cells.occupied, truth.cells).f1 == 1.0
+    # and the file round trip keeps it
+    again = Calibration.from_json(json.loads(json.dumps(updated.to_json())))
+    np.testing.assert_allclose(again.grid.centres_px, updated.grid.centres_px, atol=1e-3)
+
+
+def test_cli_update_writes_only_when_it_succeeds(tmp_path, calibration):
+    cal_path = tmp_path / "cal.json"
+    calibration.save(cal_path)
+    before = cal_path.read_bytes()
+    far, _ = _scene(motion=(0.0, 2 * MAX_MOVEMENT_PITCH * min(calibration.grid.pitch_px), 0.0, 1.0))
+    cv2.imwrite(str(tmp_path / "far.png"), far)
+    run = subprocess.run([sys.executable, "-m", "sbplan", "calibrate", "--update", str(cal_path),
+                          str(tmp_path / "far.png")], capture_output=True, text=True)
+    assert run.returncode != 0 and "Traceback" not in run.stderr and "recalibrate" in run.stderr
+    assert cal_path.read_bytes() == before
+    near, _ = _scene(motion=(3.0, 2.0, 0.2, 1.0))
+    cv2.imwrite(str(tmp_path / "near.png"), near)
+    run = subprocess.run([sys.executable, "-m", "sbplan", "calibrate", "--update", str(cal_path),
+                          str(tmp_path / "near.png")], capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    assert "re-anchored to the camera: shift (+" in run.stdout
+    moved = load_calibration(cal_path)
+    np.testing.assert_allclose(moved.grid.centres_px, apply(
+        motion_matrix(FLOOR.width, FLOOR.height, (3.0, 2.0, 0.2, 1.0)), calibration.grid.centres_px), atol=0.15)
+
+
+def test_old_calibration_files_without_registration_data_still_detect(calibration):
+    data = calibration.to_json()
+    for key in ("registration_centres_px", "reference_thumbnail_png"):
+        del data["symbol"][key]
+    old = Calibration.from_json(data)
+    assert old.registration_centres_px is None and old.reference_thumbnail is None
+    image, truth = _scene(motion=(2.0, 1.0, 0.1, 1.0))
+    cells = Detector(old).find_cells(image)
+    assert score_cells(cells.occupied, truth.cells).f1 == 1.0
+
+
+def test_registration_can_be_switched_off(calibration):
+    image, _ = _scene()
+    cells = Detector(calibration, register=False).find_cells(image)
+    assert cells.camera.model == "none" and not cells.camera.moved
+    assert CameraMotion.none().to_json()["model"] == "none"
