@@ -14,7 +14,6 @@ import threading
 
 import numpy as np
 import pytest
-from shapely import affinity
 from shapely.geometry import box
 
 import sbplan
@@ -23,25 +22,17 @@ from sbplan.errors import PlanningError
 from sbplan.planning import PlanningMap
 from sbplan.planning.plan_replan import MAPS
 
+from test_planning_replan import rect_world
+
 B = (0.0, 0.0, 100.0, 100.0)
 THREADS, TASKS = 4, 20
-
-
-def world(seed: int, n: int = 25) -> list:
-    rng = np.random.default_rng(seed)
-    out = []
-    for _ in range(n):
-        c = rng.uniform(0, 100, 2)
-        w, h = rng.uniform(3, 12, 2)
-        out.append(affinity.rotate(box(c[0] - w / 2, c[1] - h / 2, c[0] + w / 2, c[1] + h / 2), rng.uniform(0, 180)))
-    return out
 
 
 def tasks(seed: int) -> list[tuple]:
     """Plans (given bounds: a few cached maps; no bounds: a map per query, more maps than the
     cache keeps) and replans (a square on the route's middle leg, the robot a third along)."""
     rng = np.random.default_rng(seed)
-    worlds = [world(s) for s in (1, 2, 3)]
+    worlds = [rect_world(s, 25) for s in (1, 2, 3)]
     out = []
     while len(out) < THREADS * TASKS:
         w = int(rng.integers(len(worlds)))
@@ -118,7 +109,7 @@ def test_plans_and_replans_from_threads_equal_one_thread(seed):
 
 def test_queries_on_one_shared_map_from_threads_equal_one_thread():
     """One PlanningMap shared by the threads, searches filling its cache while others copy it."""
-    obs = world(4, 40)
+    obs = rect_world(4, 40)
     todo = [t for t in tasks(2) if t[0] != "plan-unbounded"][:THREADS * TASKS // 2]
 
     def answer(pm, task):
