@@ -196,7 +196,7 @@ class ContourApproximator(Stage):
         """Return the polygon's vertices, shape (M, 2) float64 ``(x, y)``, M >= 3 when possible,
         in the contour's traversal order, not closed (first vertex not repeated)."""
 
-    def approximate_many(self, contours: Sequence[Contour]) -> list[np.ndarray]:
+    def approximate_many(self, contours: Sequence[Contour]) -> Sequence[np.ndarray]:
         """:meth:`approximate` of every contour, in order. Detection calls this once per frame;
         override it when a batch is cheaper than one call per contour."""
         return [self.approximate(c) for c in contours]

@@ -95,7 +95,7 @@ def write_atomic(path: str | os.PathLike, write: Callable[[Any], None] | bytes |
         # (a replaced file keeps its mode)
         os.chmod(tmp, p.stat().st_mode & 0o7777 if p.exists() else 0o644)
         mode = "wb" if binary and not isinstance(write, str) else "w"
-        with os.fdopen(fd, mode, **({} if "b" in mode else {"encoding": "utf-8"})) as fh:
+        with os.fdopen(fd, mode, encoding=None if "b" in mode else "utf-8") as fh:
             if callable(write):
                 write(fh)
             else:

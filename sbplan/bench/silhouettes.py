@@ -14,6 +14,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -54,16 +55,17 @@ _LETTERS = {
 class _ClassSpec:
     name: str
     family: str
-    params: dict
+    params: dict[str, Any]
 
 
 def _class_specs(classes: int, rng: np.random.Generator) -> list[_ClassSpec]:
     letters = list(_LETTERS)
     rng.shuffle(letters)
-    specs = []
+    specs: list[_ClassSpec] = []
     for i in range(classes):
         family = FAMILIES[i % len(FAMILIES)]
         name = f"{family}{i:02d}"
+        params: dict[str, Any]  # per family: arrays, numbers, a letter, or the base class's spec
         if family == "polygon":
             n = int(rng.integers(5, 10))
             t = np.sort(rng.uniform(0, 2 * np.pi, n))

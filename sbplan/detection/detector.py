@@ -120,7 +120,8 @@ class Detector:
         # its symbol's edge all around (sbplan.detection.outline_checks.edges_intact): where each reference
         # outline is read, and the step the reference showed there. Old calibrations have none.
         n_cells = len(cal.symbol_polygons)
-        self._edge_x = self._edge_y = self._edge_factors = None
+        self._edge_x: np.ndarray | None = None  # None: no edge check
+        self._edge_y = self._edge_factors = np.zeros((0, EDGE_SAMPLES))
         if cal.edge_contrast is not None and np.shape(cal.edge_contrast) == (n_cells, EDGE_SAMPLES) and n_cells:
             # (outlines traced in a reduced image lie up to a reduced pixel inside the ink's edge:
             # the probes reach as much farther)
@@ -144,8 +145,8 @@ class Detector:
                                          apply(matrix, self._symbol_corners[:, 0])).max() < 1.0:
             return cached[1]
         corners = self.work.to_work(apply(matrix, self._symbol_corners))
-        bands = RowBands.around(list(corners), self.work.work_shape, margin=self._band_margin / self.work.factor)
-        bands = bands if bands.fraction <= BANDS_WORTH_IT else None
+        around = RowBands.around(list(corners), self.work.work_shape, margin=self._band_margin / self.work.factor)
+        bands = around if around.fraction <= BANDS_WORTH_IT else None
         self._bands_cache = (matrix, bands)
         return bands
 
@@ -241,8 +242,8 @@ class Detector:
                 xy = work.to_frame(xy)
                 if moved:
                     xy = motion.to_calibration(xy)
-                xy = xy.reshape(len(picked), SAMPLES, 2)
-                deviation, shift = samples_deviation(xy[..., 0], xy[..., 1], self.distance_map)
+                per_outline = xy.reshape(len(picked), SAMPLES, 2)
+                deviation, shift = samples_deviation(per_outline[..., 0], per_outline[..., 1], self.distance_map)
                 # the outline's shift was measured in calibration pixels; the frame's are scaled
                 shift = shift * motion.scale
                 straight = ~(deviation > cal.outline_tolerance_px)

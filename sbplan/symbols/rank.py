@@ -161,7 +161,7 @@ def render_view(rings: Sequence[np.ndarray], *, size: float, angle: float = 0.0,
     placed = [r - lo for r in placed]
     w, h = (hi - lo + 1).astype(int)
     alpha = coverage(placed, (h, w), supersample=8)
-    img = _PAPER - (_PAPER - _INK) * alpha
+    img: np.ndarray = _PAPER - (_PAPER - _INK) * alpha
     if blur > 0:
         img = cv2.GaussianBlur(img, (0, 0), float(blur))
     if noise > 0:
@@ -458,15 +458,13 @@ def rank_symbols(candidates: Sequence[str] | Mapping[str, Any] | None = None, *,
         regular.append(regularity(rings))
         if progress is not None:
             progress(k + 1, total, name)
-    descriptors = np.stack(descriptors)
-    dist = distance_matrix(descriptors, st["matcher"])
+    descriptor_rows = np.stack(descriptors)
+    dist = distance_matrix(descriptor_rows, st["matcher"])
     mean, var = distance_statistics(dist)
     score, order = rank_order(dist)
-    spread = np.asarray(spread)
-    noise_d = np.asarray(noise_d)
-    margin = noise_d / np.maximum(spread, 1e-9)
-    regular = np.asarray(regular)
-    ok = (regular >= min_regularity) & (margin >= min_margin)
+    spread_a, noise_a, regular_a = np.asarray(spread), np.asarray(noise_d), np.asarray(regular)
+    margin = noise_a / np.maximum(spread_a, 1e-9)
+    ok = (regular_a >= min_regularity) & (margin >= min_margin)
     best = next((names[i] for i in order if ok[i]), None)
     settings = {
         "stages": {k: {"name": s.name, "options": s.config()} for k, s in st.items()},
@@ -477,5 +475,5 @@ def rank_symbols(candidates: Sequence[str] | Mapping[str, Any] | None = None, *,
         "spread": "max distance of a rendering from the candidate's median descriptor",
         "regularity": "share of outline length in Douglas-Peucker edges (1.2 px) >= 15% of the size, at 600 px",
     }
-    return Ranking(names, descriptors, dist, mean, var, score, order, regular, spread, noise_d, nearest, margin,
+    return Ranking(names, descriptor_rows, dist, mean, var, score, order, regular_a, spread_a, noise_a, nearest, margin,
                    best, settings, time.perf_counter() - t0)

@@ -11,12 +11,13 @@ from __future__ import annotations
 
 import os
 from dataclasses import replace
-from typing import Any
+from typing import Any, cast
 
 import cv2
 import numpy as np
 
 from ... import registry
+from ...contracts import DescriptorMatcher
 from ...errors import CalibrationError, InputError
 from ...imageio import as_gray, load_image
 from ...workspace import Workspace, load_workspace
@@ -132,8 +133,10 @@ def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str 
                                   ("matcher", matcher), ("mapper", mapper))}
     h, w = gray.shape
     points_range = (12, max(16, (h + w) // 2))
-    kw = dict(extractor=chosen["extractor"], approximator=chosen["approximator"], matcher=chosen["matcher"])
-    shapes = extract_shapes(gray, binarizer=chosen["binarizer"], points_range=points_range, **kw)
+    matcher_stage = cast(DescriptorMatcher, chosen["matcher"])  # the registry made it for the kind "matcher"
+    extractor_stage, approximator_stage = chosen["extractor"], chosen["approximator"]
+    shapes = extract_shapes(gray, binarizer=chosen["binarizer"], points_range=points_range,
+                            extractor=extractor_stage, approximator=approximator_stage, matcher=matcher_stage)
     given = None if symbol is None else _symbol_descriptor_from_image(
         symbol, extractor=chosen["extractor"], approximator=chosen["approximator"], matcher=chosen["matcher"])
     members = _symbol_members(shapes, chosen["matcher"], ref=given)
@@ -143,17 +146,18 @@ def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str 
     # (sbplan.detection.working): a 4K camera costs what the symbols' size asks, not its pixels.
     size = float(np.sqrt(np.median(shapes.areas[members])))
     work = WorkScale(work_factor(size), gray.shape)
+    work_arg = None if work.identity else work
     if not work.identity:
         points_range = (12, max(16, sum(work.work_shape) // 2))
-        kw["work"] = work
     fit = getattr(chosen["binarizer"], "with_symbol_size", None)
     refit = fit(size * 1.6 / work.factor) if fit is not None else chosen["binarizer"]
     if refit != chosen["binarizer"] or not work.identity:
         chosen["binarizer"] = refit
-        shapes = extract_shapes(gray, binarizer=refit, points_range=points_range, **kw)
+        shapes = extract_shapes(gray, binarizer=refit, points_range=points_range, work=work_arg,
+                                extractor=extractor_stage, approximator=approximator_stage, matcher=matcher_stage)
         members = _symbol_members(shapes, chosen["matcher"], ref=given)
     reference_descriptor = np.median(shapes.descriptors[members], axis=0)
-    dist = chosen["matcher"].distance_matrix(shapes.descriptors, reference_descriptor[None, :])[:, 0]
+    dist = matcher_stage.distance_matrix(shapes.descriptors, reference_descriptor[None, :])[:, 0]
     grid = fit_grid(shapes.centres[members])
     # What a symbol looks like in later images is not what it looks like in this one: measure the
     # symbols again in degraded copies of the reference (defocus, dimmer light, sensor noise).
@@ -164,7 +168,8 @@ def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str 
     distance_map = signed_distance_map(symbol_polygons, gray.shape)
     degraded, deviations, degraded_polygons, degraded_cells, shifts = _degraded_symbols(
         gray, grid, reference_descriptor, cell_area, distance_map,
-        binarizer=chosen["binarizer"], points_range=points_range, **kw)
+        binarizer=chosen["binarizer"], points_range=points_range, work=work_arg,
+        extractor=extractor_stage, approximator=approximator_stage, matcher=matcher_stage)
     # An obstacle that clips a symbol moves part of its outline by more than light and focus
     # move it; the tolerance sits outside what the degraded copies showed, and at least 1 px.
     outline_tolerance = float(max(1.25 * np.max(deviations), 1.0)) if len(deviations) else 3.0
@@ -246,7 +251,11 @@ def _degraded_symbols(gray: np.ndarray, grid: Grid, descriptor: np.ndarray, cell
         np.clip(0.3 * g + rng.normal(0, 4, g.shape), 0, 255).astype(np.uint8),
         np.clip(g + rng.normal(0, 8, g.shape), 0, 255).astype(np.uint8),
     ]
-    distances, deviations, polygons, cells_kept, shifts = [], [], [], [], []
+    distances: list[np.ndarray] = []
+    deviations: list[np.ndarray] = []
+    polygons: list[np.ndarray] = []
+    cells_kept: list[np.ndarray] = []
+    shifts: list[np.ndarray] = []
     for image in copies:
         shapes = extract_shapes(image, binarizer=binarizer, extractor=extractor, approximator=approximator,
                                 matcher=matcher, points_range=points_range, work=work)
