@@ -22,7 +22,7 @@ import dataclasses
 import typing
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
-from typing import Any, ClassVar, Sequence
+from typing import Any, ClassVar, Sequence, TypedDict
 
 import numpy as np
 
@@ -306,3 +306,14 @@ def as_descriptors(descriptors, *, name: str = "descriptors") -> np.ndarray:
     if not np.isfinite(arr).all():
         raise InputError(f"{name}: descriptors contain NaN or infinite values")
     return arr
+
+
+class StageChoices(TypedDict, total=False):
+    """The detection stages chosen for :func:`sbplan.calibrate`, :func:`sbplan.detect` and
+    :class:`~sbplan.detection.Detector` (``**choices``): kind -> registered name or stage instance."""
+
+    binarizer: str | Binarizer
+    extractor: str | ContourExtractor
+    approximator: str | ContourApproximator
+    matcher: str | DescriptorMatcher
+    mapper: str | OccupancyMapper

@@ -18,6 +18,10 @@ import numpy as np
 
 from .errors import ImageError
 
+#: An image the pipeline takes: a path of an image file, or an array (H, W), (H, W, 3) or (H, W, 4)
+#: (see :func:`as_gray`).
+ImageInput = str | os.PathLike | np.ndarray
+
 
 def as_gray(image: Any, *, name: str = "image") -> np.ndarray:
     """Validate an image array and return it as 8-bit grayscale.

@@ -35,7 +35,7 @@ HARD_CASES = {
 }
 
 #: Letter-like stroke skeletons on a unit box (y down); each is a list of polylines.
-_LETTERS = {
+_LETTERS: dict[str, list[list[tuple[float, float]]]] = {
     "L": [[(0, 0), (0, 1), (0.7, 1)]],
     "T": [[(0, 0), (1, 0)], [(0.5, 0), (0.5, 1)]],
     "E": [[(0.8, 0), (0, 0), (0, 1), (0.8, 1)], [(0, 0.5), (0.6, 0.5)]],

@@ -11,12 +11,13 @@ import collections.abc
 import os
 import time
 from dataclasses import replace
-from typing import Any
+from typing import Unpack
 
 import numpy as np
 
+from ..contracts import Binarizer, ContourApproximator, ContourExtractor, DescriptorMatcher, OccupancyMapper, StageChoices
 from ..errors import CameraMotionError, DetectionError
-from ..imageio import as_gray, load_image
+from ..imageio import ImageInput, as_gray, load_image
 from ..polygons import PolygonBatch, centroids, resample_complex, signed_areas
 from .bands import RowBands
 from .calibration.file import Calibration, load_calibration
@@ -63,8 +64,10 @@ class Detector:
     processes whole frames.
     """
 
-    def __init__(self, calibration: Calibration, *, binarizer: Any = None, extractor: Any = None,
-                 approximator: Any = None, matcher: Any = None, mapper: Any = None, row_bands: bool = True,
+    def __init__(self, calibration: Calibration, *, binarizer: str | Binarizer | None = None,
+                 extractor: str | ContourExtractor | None = None, approximator: str | ContourApproximator | None = None,
+                 matcher: str | DescriptorMatcher | None = None, mapper: str | OccupancyMapper | None = None,
+                 row_bands: bool = True,
                  register: bool = True):
         self.calibration = cal = calibration
         self.binarizer = cal.stage("binarizer", binarizer)
@@ -160,7 +163,7 @@ class Detector:
         ok = band >= 0
         return bool(ok.all() and (hi < bands.stops[band]).all() and (lo >= bands.starts[band]).all())
 
-    def find_cells(self, image: Any) -> CellDetection:
+    def find_cells(self, image: ImageInput) -> CellDetection:
         """Image in -> occupied cells out: the pipeline up to the mapper, for callers that need
         only the cells (and what :meth:`__call__` builds on).
 
@@ -371,7 +374,7 @@ class Detector:
             hi[:, 1] += dy
         return np.concatenate([lo, hi], axis=1)
 
-    def __call__(self, image: Any) -> Detection:
+    def __call__(self, image: ImageInput) -> Detection:
         """The whole detection: :meth:`find_cells`, then the occupancy image and the obstacles."""
         cal = self.calibration
         cells = self.find_cells(image)
@@ -405,7 +408,8 @@ class _Picked(collections.abc.Sequence):
         return self.batch[int(self.indices[i])]
 
 
-def detect(image: Any, calibration: Calibration | str | os.PathLike, **stages: Any) -> Detection:
+def detect(image: ImageInput, calibration: Calibration | str | os.PathLike,
+           **stages: Unpack[StageChoices]) -> Detection:
     """Detect the occupied cells and obstacles of one image.
 
     Parameters

@@ -169,6 +169,8 @@ def replan(route: Route, position: Any, new_obstacles: Any, *, planner: Any = No
     if not touched:
         return Route(remaining, status=route.status, planner=route.planner, time=time.perf_counter() - t0,
                      replanned=False, map=pm, goal=route.goal)
+    if route.goal is None:  # only an empty route has none, and an empty route touches nothing
+        raise InputError("route: has no goal to replan to")
     out = stage.solve(Problem(pm, p, route.goal), time_limit=tl)
     out.time = time.perf_counter() - t0
     return out

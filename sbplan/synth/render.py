@@ -8,6 +8,7 @@ it, adds signal-dependent noise, quantizes to 8 bits and optionally JPEG-compres
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 from typing import Callable
@@ -180,8 +181,6 @@ def render_reference(floor: FloorSpec, *, seed: int = 0, condition: str = "clean
     cond = condition_effects(condition)
     base = Effects(tilt=cond.tilt, distortion=cond.distortion)
     if effects:
-        import dataclasses
-
         try:
             base = dataclasses.replace(base, **effects)
         except TypeError as exc:

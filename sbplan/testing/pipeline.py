@@ -12,7 +12,10 @@ import numpy as np
 
 from .. import registry
 from ..contracts import Stage
+from ..detection import Detector
+from ..detection.calibration import calibrate
 from ..errors import PluginError
+from ..synth import FloorSpec, SceneSpec, render_reference, render_scene
 
 
 @dataclass(frozen=True, eq=False)
@@ -65,8 +68,6 @@ def make_tiny_floor(*, seed: int = 3, n_obstacles: int = 2, condition: str = "cl
         pixel grid differently, so the reference's symbols are not pixel-identical copies (as on
         a real floor) and a calibration sees their true spread.
     """
-    from ..synth import FloorSpec, SceneSpec, render_reference, render_scene
-
     spec = FloorSpec(width=width, height=height, cols=cols, rows=rows, pitch=pitch)
     reference = render_reference(spec, seed=0)
     scene, truth = render_scene(spec, SceneSpec(n_obstacles=n_obstacles, condition=condition), seed=seed)
@@ -88,8 +89,6 @@ class CalibratedPipeline:
         A matcher other than the calibrated one gets its reference descriptor and threshold from
         :meth:`~sbplan.detection.Calibration.matching_for`.
         """
-        from ..detection import Detector
-
         return Detector(self.calibration, **stages)(self.floor.scene if image is None else image)
 
     def cell_errors(self, detection) -> int:
@@ -100,8 +99,6 @@ class CalibratedPipeline:
 
 def make_calibrated_pipeline(floor: TinyFloor | None = None, **stages: Any) -> CalibratedPipeline:
     """Calibrate on ``floor.reference`` (default: :func:`make_tiny_floor`) with optional stages."""
-    from ..detection.calibration import calibrate
-
     floor = floor or make_tiny_floor()
     return CalibratedPipeline(floor, calibrate(floor.reference, **stages))
 

@@ -11,20 +11,21 @@ from __future__ import annotations
 
 import os
 from dataclasses import replace
-from typing import Any, cast
+from typing import Any, Unpack, cast
 
 import cv2
 import numpy as np
 
 from ... import registry
-from ...contracts import DescriptorMatcher
+from ...contracts import (Binarizer, ContourApproximator, ContourExtractor, DescriptorMatcher, OccupancyMapper,
+                          StageChoices)
 from ...errors import CalibrationError, InputError
-from ...imageio import as_gray, load_image
+from ...imageio import ImageInput, as_gray, load_image
 from ...workspace import Workspace, load_workspace
 from ..grid import Grid, fit_grid
 from ..outline_checks import (EDGE_DEPTH_PX, edge_contrast, edge_probes, inner_deviations, inner_tolerance,
                               outline_deviation, reference_samples, signed_distance_map)
-from ..registration import centre_window, grey_centres, thumbnail
+from ..registration import CameraMotion, centre_window, grey_centres, thumbnail
 from .file import Calibration
 from ..working import WorkScale, work_factor
 from .shapes import Shapes, extract_shapes
@@ -44,7 +45,7 @@ def _stage_spec(stage) -> dict[str, Any]:
     return {"name": stage.name, "options": stage.config()}
 
 
-def _symbol_descriptor_from_image(symbol: Any, *, extractor, approximator, matcher) -> np.ndarray:
+def _symbol_descriptor_from_image(symbol: ImageInput, *, extractor, approximator, matcher) -> np.ndarray:
     gray = as_gray(load_image(symbol) if isinstance(symbol, (str, os.PathLike)) else symbol, name="symbol")
     # An image of one symbol on a plain ground, at any scale: one global threshold separates them
     # (a local binarizer sized for the floor's symbols would not), and the largest dark shape is it.
@@ -56,7 +57,8 @@ def _symbol_descriptor_from_image(symbol: Any, *, extractor, approximator, match
     return shapes.descriptors[int(np.argmax(shapes.areas))]
 
 
-def update_calibration(calibration: Calibration, frame: Any, **stages: Any) -> tuple[Calibration, Any]:
+def update_calibration(calibration: Calibration, frame: ImageInput,
+                       **stages: Unpack[StageChoices]) -> tuple[Calibration, CameraMotion]:
     """Re-anchor a calibration to the camera's present pose from a frame with obstacles on it.
 
     The frame is registered to the calibration with the free symbols it shows
@@ -93,9 +95,11 @@ def update_calibration(calibration: Calibration, frame: Any, **stages: Any) -> t
     return replace(updated, stats=stats), motion
 
 
-def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str | os.PathLike | None = None,
-              cell_size: float | None = None, binarizer: Any = None, extractor: Any = None,
-              approximator: Any = None, matcher: Any = None, mapper: Any = None) -> Calibration:
+def calibrate(reference: ImageInput, *, symbol: ImageInput | None = None,
+              workspace: Workspace | str | os.PathLike | None = None, cell_size: float | None = None,
+              binarizer: str | Binarizer | None = None, extractor: str | ContourExtractor | None = None,
+              approximator: str | ContourApproximator | None = None, matcher: str | DescriptorMatcher | None = None,
+              mapper: str | OccupancyMapper | None = None) -> Calibration:
     """Calibrate on an image of the empty floor.
 
     Parameters
