@@ -22,12 +22,16 @@ import dataclasses
 import typing
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
-from typing import Any, ClassVar, Sequence, TypedDict
+from typing import TYPE_CHECKING, Any, ClassVar, Sequence, TypedDict
 
 import numpy as np
 
 from .contours import Contour
 from .errors import InputError
+
+if TYPE_CHECKING:  # (the contracts are the foundation: the pipeline and the planner import them)
+    from .detection.grid import Grid
+    from .planning.route import Problem, Route
 
 if typing.TYPE_CHECKING:
     from .detection.bands import RowBands
@@ -245,7 +249,7 @@ class OccupancyMapper(Stage):
     kind = "mapper"
 
     @abstractmethod
-    def occupancy_image(self, grid: Any, occupied: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    def occupancy_image(self, grid: Grid, occupied: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
         """Return the occupancy image.
 
         Parameters
@@ -270,7 +274,7 @@ class Planner(Stage):
     kind = "planner"
 
     @abstractmethod
-    def solve(self, problem: Any, *, time_limit: float = 1.0) -> Any:
+    def solve(self, problem: Problem, *, time_limit: float = 1.0) -> Route:
         """Solve a ``sbplan.planning.Problem`` and return a ``sbplan.planning.Route``."""
 
 

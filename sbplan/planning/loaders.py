@@ -11,7 +11,7 @@ import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, cast
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 import shapely
@@ -20,6 +20,9 @@ from shapely.geometry import Polygon, box
 
 from ..errors import ImageError, InputError, MapFormatError
 from ..imageio import as_gray, load_image
+
+if TYPE_CHECKING:
+    from ..detection import Detection
 
 
 @dataclass
@@ -99,7 +102,7 @@ def _poly(coords: Any, where: str) -> Polygon:
     return Polygon(a)
 
 
-def detection_obstacles(detection: Any, *, use: str = "mar", source: str = "") -> ObstacleSet:
+def detection_obstacles(detection: Detection | dict[str, Any], *, use: str = "mar", source: str = "") -> ObstacleSet:
     """The obstacles of a detection result, as the planner takes them: the one place that says
     which polygons of a detection are obstacles (``sbplan demo``, the TUI and
     :func:`load_obstacles` all come here).

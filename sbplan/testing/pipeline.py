@@ -6,16 +6,17 @@ from __future__ import annotations
 import contextlib
 import functools
 from dataclasses import dataclass
-from typing import Any, Iterator
+from typing import Iterator, Unpack
 
 import numpy as np
 
 from .. import registry
-from ..contracts import Stage
-from ..detection import Detector
+from ..contracts import Stage, StageChoices
+from ..detection import Calibration, CellDetection, Detection, Detector
 from ..detection.calibration import calibrate
 from ..errors import PluginError
 from ..synth import FloorSpec, SceneSpec, render_reference, render_scene
+from ..synth.truth import GroundTruth
 
 
 @dataclass(frozen=True, eq=False)
@@ -33,10 +34,10 @@ class TinyFloor:
         ``truth.cells[row, col]``: 1 occupied, 0 free, -1 ambiguous (a sliver covered).
     """
 
-    spec: Any
+    spec: FloorSpec
     reference: np.ndarray
     scene: np.ndarray
-    truth: Any
+    truth: GroundTruth
 
     @property
     def occupied(self) -> np.ndarray:
@@ -81,9 +82,9 @@ class CalibratedPipeline:
     """A calibration of a :class:`TinyFloor` and detection on its scene."""
 
     floor: TinyFloor
-    calibration: Any
+    calibration: Calibration
 
-    def detect(self, image: np.ndarray | None = None, **stages: Any):
+    def detect(self, image: np.ndarray | None = None, **stages: Unpack[StageChoices]) -> Detection:
         """Detection on ``image`` (default: the floor's scene) with stage overrides by name or instance.
 
         A matcher other than the calibrated one gets its reference descriptor and threshold from
@@ -91,13 +92,13 @@ class CalibratedPipeline:
         """
         return Detector(self.calibration, **stages)(self.floor.scene if image is None else image)
 
-    def cell_errors(self, detection) -> int:
+    def cell_errors(self, detection: Detection | CellDetection) -> int:
         """Cells where ``detection`` disagrees with the ground truth, ambiguous cells not counted."""
         wrong = detection.occupied != self.floor.occupied
         return int((wrong & ~self.floor.ambiguous).sum())
 
 
-def make_calibrated_pipeline(floor: TinyFloor | None = None, **stages: Any) -> CalibratedPipeline:
+def make_calibrated_pipeline(floor: TinyFloor | None = None, **stages: Unpack[StageChoices]) -> CalibratedPipeline:
     """Calibrate on ``floor.reference`` (default: :func:`make_tiny_floor`) with optional stages."""
     floor = floor or make_tiny_floor()
     return CalibratedPipeline(floor, calibrate(floor.reference, **stages))

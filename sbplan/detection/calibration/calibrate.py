@@ -85,7 +85,7 @@ def update_calibration(calibration: Calibration, frame: ImageInput,
     CameraMotionError
         The movement cannot be estimated, or is too large to pair symbols with cells.
     """
-    from ..detector import Detector  # the detector is built on calibrations: imported when used
+    from ..detector import Detector  # here, not at the top: detector.py imports this package (a cycle)
 
     cells = Detector(calibration, **stages).find_cells(frame)
     motion = cells.camera
