@@ -29,6 +29,7 @@ import concurrent.futures
 import itertools
 import threading
 import time
+from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Any, Callable
 
@@ -39,10 +40,15 @@ from shapely.geometry import Polygon
 from .. import __version__
 from ..detection import Calibration, Detection, Detector
 from ..errors import InputError, SbplanError
-from ..planning import plan
+from ..planning import PlanningMap, plan
 from . import images, models
 from .errors import NoFrameError, UnknownRouteError, status_and_code
 from .state import RouteRecord, Snapshot, State, obstacle_key, route_model
+
+
+#: Planning maps kept (one per frame and robot size): routes of a few robot sizes on the current
+#: frame, and the previous frame's while its routes are checked.
+MAPS_KEPT = 8
 
 
 @dataclass(frozen=True)
@@ -103,6 +109,7 @@ class Service:
         self._state_thread: int | None = None
         self._state_pool.submit(self._claim_state_thread).result()
         self._route_ids = itertools.count(1)
+        self._maps: OrderedDict[tuple[int, float, float], PlanningMap] = OrderedDict()  # state thread only
         self._seq = 0
         self._listeners: list[Callable[[OutEvent], None]] = []
 
@@ -218,7 +225,7 @@ class Service:
         frame = old.snapshot.frame + 1 if old.snapshot is not None else 1
         snap = Snapshot(frame=frame, **staged)
         changed: list[RouteRecord] = []
-        routes = dict(old.routes)
+        routes = old.routes.copy()
         if old.snapshot is None or snap.keys != old.snapshot.keys:
             for rid, rec in old.routes.items():
                 new = self._check_route(rec, snap)
@@ -271,8 +278,26 @@ class Service:
         return float(self.calibration.workspace.robot_radius_m)
 
     def _plan(self, snap: Snapshot, extras: tuple[Polygon, ...], start, goal, radius: float, margin: float):
-        return plan(list(snap.obstacles) + list(extras), start, goal, robot_radius=radius, margin=margin,
-                    planner=self.planner, bounds=snap.bounds, time_limit=self.time_limit)
+        if extras:  # a route's own obstacles: plan()'s cache keeps the few maps such routes need
+            obstacles: Any = list(snap.obstacles) + list(extras)
+        else:
+            obstacles = self._map(snap, radius, margin)
+        return plan(obstacles, start, goal, robot_radius=radius, margin=margin, planner=self.planner,
+                    bounds=snap.bounds, time_limit=self.time_limit)
+
+    def _map(self, snap: Snapshot, radius: float, margin: float) -> PlanningMap:
+        """The snapshot's planning map for a robot size, built once and kept for the next queries
+        (its visibility cache fills as they come): plan() given a list of polygons would check and
+        hash all of them again on every request."""
+        key = (snap.frame, radius, margin)
+        pmap = self._maps.get(key)
+        if pmap is None:
+            pmap = self._maps[key] = PlanningMap(snap.obstacles, robot_radius=radius, margin=margin, bounds=snap.bounds)
+            while len(self._maps) > MAPS_KEPT:
+                self._maps.popitem(last=False)
+        else:
+            self._maps.move_to_end(key)
+        return pmap
 
     def _create_route(self, req: models.RouteRequest) -> models.Route:
         self._check_thread()
@@ -286,7 +311,7 @@ class Service:
                             margin=req.margin, extras=0, planner=self.planner)
         rec = RouteRecord(model=model, route=route, goal=tuple(req.goal), position=tuple(req.start),
                           robot_radius=radius, margin=float(req.margin), extras=(), planned_on=snap.keys)
-        routes = dict(old.routes)
+        routes = old.routes.copy()
         routes[rid] = rec
         while len(routes) > self.max_routes:
             del routes[next(iter(routes))]
@@ -327,7 +352,7 @@ class Service:
 
     def _put(self, rec: RouteRecord) -> None:
         old = self._state
-        routes = dict(old.routes)
+        routes = old.routes.copy()
         routes.pop(rec.id, None)
         routes[rec.id] = rec
         self._state = old.with_routes(routes)
@@ -336,7 +361,7 @@ class Service:
         self._check_thread()
         rec = self.route(rid)
         old = self._state
-        routes = dict(old.routes)
+        routes = old.routes.copy()
         del routes[rid]
         self._state = old.with_routes(routes)
         self._emit(models.RouteDeletedEvent, rec.owner, dict(id=rid, owner=rec.owner))
@@ -345,7 +370,7 @@ class Service:
         self._check_thread()
         rec = self.route(rid)
         old = self._state
-        routes = dict(old.routes)
+        routes = old.routes.copy()
         routes[rid] = rec.evolve(position=tuple(position))
         self._state = old.with_routes(routes)
 

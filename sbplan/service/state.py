@@ -8,7 +8,6 @@ reader takes ``service.state`` once and sees the state before or after a change,
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass, field, replace
 from types import MappingProxyType
@@ -147,8 +146,9 @@ def route_model(*, rid: str, owner: str | None, version: int, frame: int, reason
     if route is None:
         status, length, waypoints, ms = None, None, [], 0.0
     else:
-        status, length, ms = route.status, route.length, route.time * 1e3
-        waypoints = [(x, y) for x, y in route.waypoints.tolist()]
+        # micrometres, as the detection JSON: the planner's clearance has 1e-6 of the floor's size to spare
+        status, length, ms = route.status, round(route.length, 6), round(route.time * 1e3, 3)
+        waypoints = [(x, y) for x, y in np.round(route.waypoints, 6).tolist()]
         planner = route.planner
     return models.Route.model_construct(
         id=rid, owner=owner, version=version, frame=frame, state="ok" if route is not None else "blocked",
@@ -156,9 +156,3 @@ def route_model(*, rid: str, owner: str | None, version: int, frame: int, reason
         goal_m=tuple(goal), position_m=tuple(position), robot_radius_m=robot_radius, margin_m=margin,
         extra_obstacles=extras, planner=planner, planning_ms=ms, updated=time.time(), error=error)
 
-
-def finite_pair(p: Any) -> tuple[float, float]:
-    x, y = (float(v) for v in p)
-    if not (math.isfinite(x) and math.isfinite(y)):
-        raise ValueError(f"not a finite point: {p!r}")
-    return x, y
