@@ -411,3 +411,17 @@ def test_a_folder_source_is_read_in_order_and_bad_frames_are_skipped(cal, tmp_pa
         assert state["frame"] == 2 and state["name"] == "03-scene.png" and state["source"] == "folder:frames"
         assert len(state["obstacles"]) == 3
         assert http.get("/health").json()["source"] == "folder:frames"
+
+
+def test_the_listening_socket_says_it_is_tcp():
+    """asyncio turns Nagle's algorithm off only on connections of a socket made with IPPROTO_TCP;
+    with proto 0 every answer on a kept-alive connection waited about 40 ms for the client's ACK."""
+    import socket
+
+    from sbplan.service.server import bind
+
+    sock = bind("127.0.0.1", 0)
+    try:
+        assert sock.proto == socket.IPPROTO_TCP
+    finally:
+        sock.close()
