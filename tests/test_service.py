@@ -425,3 +425,15 @@ def test_the_listening_socket_says_it_is_tcp():
         assert sock.proto == socket.IPPROTO_TCP
     finally:
         sock.close()
+
+
+def test_the_core_and_the_cli_do_not_import_the_web_stack():
+    """FastAPI and uvicorn are the serve extra's: the library and `sbplan --help` work without them."""
+    import subprocess
+    import sys
+
+    code = ("import sys, sbplan, sbplan.detection, sbplan.planning, sbplan.cli\n"
+            "sbplan.cli.build_parser()\n"
+            "print(sorted(m for m in sys.modules if m.split('.')[0] in ('fastapi', 'uvicorn', 'starlette')))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
