@@ -22,10 +22,10 @@ from .bands import RowBands
 from .calibration.file import Calibration, load_calibration
 from .calibration.shapes import length_filter_steps
 from .obstacles import find_obstacles
-from .outline_checks import (EDGE_SAMPLES, EDGE_SCRATCH_POINTS, INNER_MARGIN_PX, SAMPLES, edge_factors, edge_kept,
+from .outline_checks import (EDGE_SAMPLES, EDGE_SCRATCH_POINTS, EDGE_UNPROBED, INNER_MARGIN_PX, SAMPLES, edge_factors, edge_kept,
                              edge_probes, hidden_piece, intact_edges, reference_samples, samples_deviation,
                              scratches_repaired, signed_distance_map)
-from .registration import INLIER_PX, MIN_SYMBOLS, CameraMotion, apply, centre_window, grey_centres, register
+from .registration import MIN_SYMBOLS, CameraMotion, apply, centre_window, grey_centres, refine, register_pairs
 from .result import CellDetection, Detection
 
 #: Row bands reach this many symbol sizes (and at least BAND_MARGIN_PX) above and below the
@@ -40,8 +40,10 @@ BAND_SPARE_PX = 2.0
 #: Cells called occupied whose scratches are looked for in one frame, at most (wear is a few
 #: symbols here and there; a frame with more broken symbols has obstacles, not wear).
 SCRATCH_CELLS = 24
-#: Cells whose edge is broken at more than this share of its points are not looked at for scratches.
-SCRATCH_BROKEN_SHARE = 0.3
+#: Cells whose edge is broken at more than this share of its points are not looked at for scratches
+#: (on the suite's worn floors scratched symbols broke at most 11 % of their points; 90 % of the
+#: occupied cells whose edge broke, more than 15 %).
+SCRATCH_BROKEN_SHARE = 0.25
 #: Symbols whose grey-level centres refine the registration (spread over the grid): 24 pin it to
 #: about 0.05 px on the renderer's scenes at half the cost of all 50.
 REGISTRATION_SYMBOLS = 24
@@ -100,9 +102,9 @@ class Detector:
         # (sbplan.detection.registration); the last estimate seeds the next frame's
         self.register = bool(register)
         self.motion: CameraMotion = CameraMotion.none()
+        # what the frames' grey-level centres are compared with, by flat cell number
         self._registration_centres = (cal.registration_centres_px if cal.registration_centres_px is not None
-                                      else cal.grid.centres_px)
-        self._registration_grid = replace(cal.grid, centres_px=self._registration_centres)
+                                      else cal.grid.centres_px).reshape(-1, 2)
         self._centre_window = centre_window(cal.symbol_polygons) if cal.symbol_polygons else 0
         # the length filter's bounds, checked once (length_filter raises on bad ones)
         length_filter_steps([], cal.symbol_points_range)
@@ -262,10 +264,11 @@ class Detector:
             if moved:
                 q = motion.to_frame(np.stack([ex, ey], axis=-1))
                 ex, ey = q[..., 0].astype(np.float32), q[..., 1].astype(np.float32)
-            kept = edge_kept(gray, ex, ey, self._edge_factors[missing])
-            intact = intact_edges(kept, max_break=EDGE_SCRATCH_POINTS)
+            factors = self._edge_factors[missing]
+            kept = edge_kept(gray, ex, ey, factors)
+            intact = intact_edges(kept, max_break=EDGE_SCRATCH_POINTS, probed=factors < EDGE_UNPROBED)
             # ... or shows it once the thin scratches across it are painted over (wear), asked of
-            # a few cells only: an obstacle over a symbol breaks most of its edge, scratches a few
+            # a few cells only: an obstacle over a symbol breaks much of its edge, scratches a few
             # points, and a floor that is mostly occupied is not worn symbols
             broken = np.flatnonzero(~intact & ((~kept).mean(axis=1) <= SCRATCH_BROKEN_SHARE))
             if 0 < len(broken) <= SCRATCH_CELLS:
@@ -320,43 +323,28 @@ class Detector:
         if not self.register:
             return CameraMotion.none()
         binary, polygons, hit, centres, areas = frame
-        shape = self.calibration.image_shape
         cal = self.calibration
-        coarse = register(centres, cal.grid, shape, hint=hint.matrix, reference_thumbnail=cal.reference_thumbnail,
-                          frame=gray)
-        if coarse.model == "assumed" or not len(hit):
+        coarse, cells = register_pairs(centres, cal.grid, cal.image_shape, hint=hint.matrix,
+                                       reference_thumbnail=cal.reference_thumbnail, frame=gray)
+        take = np.flatnonzero(cells >= 0)
+        if coarse.model == "assumed" or len(take) < MIN_SYMBOLS:
             return coarse
-        # the inliers' boxes in the frame, at most REGISTRATION_SYMBOLS of them spread over the grid
-        fine = grey_centres(gray, self._inlier_boxes(polygons, hit, centres, coarse, bands), self._centre_window)
-        good = np.isfinite(fine).all(axis=1)
-        if good.sum() < MIN_SYMBOLS:
-            return coarse
-        # the coarse fit settled any whole-pitch ambiguity: the fine one starts from it
-        fine_motion = register(fine[good], self._registration_grid, shape, hint=coarse.matrix)
-        if coarse.ambiguous_pitch and not fine_motion.ambiguous_pitch:
-            fine_motion = replace(fine_motion, ambiguous_pitch=True, warning=coarse.warning)
-        return fine_motion
-
-    def _inlier_boxes(self, polygons: PolygonBatch, hit: np.ndarray, centres: np.ndarray, coarse: CameraMotion,
-                      bands: RowBands | None) -> np.ndarray:
-        """Bounding boxes ``(x0, y0, x1, y1)`` in the frame's pixels of the hits that ``coarse``
-        pairs with a cell, at most REGISTRATION_SYMBOLS of them spread over the grid."""
-        grid = self.calibration.grid
-        cal_centres = coarse.to_calibration(centres)
-        cells = grid.assign(cal_centres)
-        flat = cells[:, 0] * grid.cols + cells[:, 1]
-        near = np.linalg.norm(grid.centres_px.reshape(-1, 2)[np.maximum(flat, 0)] - cal_centres, axis=1)
-        take = np.flatnonzero((flat >= 0) & (near <= 2 * INLIER_PX))
         if len(take) > REGISTRATION_SYMBOLS:
             # evenly over the grid's cells: a spread-out set pins rotation and scale
-            take = take[np.argsort(flat[take], kind="stable")]
+            take = take[np.argsort(cells[take], kind="stable")]
             take = take[np.linspace(0, len(take) - 1, REGISTRATION_SYMBOLS).round().astype(np.int64)]
-        sel = hit[take]
-        lo = np.minimum.reduceat(polygons.points, polygons.starts, axis=0)[sel]
-        hi = np.maximum.reduceat(polygons.points, polygons.starts, axis=0)[sel]
+        fine = grey_centres(gray, self._boxes(polygons, hit[take], centres[take], bands), self._centre_window)
+        return refine(fine, cells[take], self._registration_centres, cal.grid, cal.image_shape, coarse)
+
+    def _boxes(self, polygons: PolygonBatch, picked: np.ndarray, centres: np.ndarray,
+               bands: RowBands | None) -> np.ndarray:
+        """Bounding boxes ``(x0, y0, x1, y1)`` in the frame's pixels of the polygons ``picked``, whose
+        centres in the frame are ``centres``."""
+        lo = np.minimum.reduceat(polygons.points, polygons.starts, axis=0)[picked]
+        hi = np.maximum.reduceat(polygons.points, polygons.starts, axis=0)[picked]
         if bands is not None:
             # an outline lies inside one band: all its rows move by that band's shift
-            dy = centres[take, 1] - bands.to_stacked(centres[take])[:, 1]
+            dy = centres[:, 1] - bands.to_stacked(centres)[:, 1]
             lo[:, 1] += dy
             hi[:, 1] += dy
         return np.concatenate([lo, hi], axis=1)
