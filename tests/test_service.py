@@ -7,6 +7,7 @@ import asyncio
 import concurrent.futures
 import json
 import struct
+import threading
 import zlib
 
 import numpy as np
@@ -21,7 +22,7 @@ from sbplan.detection import calibrate
 from sbplan.planning import load_obstacles
 from sbplan.service import Limits
 from sbplan.service.core import OutEvent
-from sbplan.service.events import Broker
+from sbplan.service.events import FELL_BEHIND, Broker
 from sbplan.service.images import image_header
 from sbplan.service.server import is_loopback
 from sbplan.service.sources import FolderSource
@@ -212,6 +213,19 @@ def test_bad_input_gets_a_4xx_with_a_code_and_one_line(cal):
         assert http.post("/routes", json={"start": START, "goal": GOAL}).status_code == 201
 
 
+def test_frames_beyond_the_waiting_limit_are_refused_busy(cal):
+    with running(cal, limits=Limits(max_pending_frames=1)) as (url, service), client(url) as http:
+        gate = threading.Event()
+        service._detect_pool.submit(gate.wait)  # hold the detection thread
+        with concurrent.futures.ThreadPoolExecutor(1) as pool:
+            first = pool.submit(http.post, "/detect", content=SCENE_PNG)
+            wait_for(lambda: service._pending == 1)
+            _is_error(http.post("/detect", content=EMPTY_PNG), 503, "busy")
+            gate.set()
+            assert first.result().json()["frame"] == 1
+        assert http.post("/detect", content=EMPTY_PNG).json()["frame"] == 2
+
+
 def test_image_header_reads_png_and_jpeg_sizes():
     assert image_header(SCENE_PNG) == ("png", 792, 552)
     assert image_header(jpeg(SCENE_PNG)) == ("jpeg", 792, 552)
@@ -330,7 +344,7 @@ def test_a_client_that_falls_behind_is_told_to_reconnect():
         return broker, slow, fast
 
     broker, slow, fast = asyncio.run(scenario())
-    assert slow not in broker.subscribers and slow.queue.get_nowait() is None  # closed with 1013
+    assert slow not in broker.subscribers and slow.queue.get_nowait() is FELL_BEHIND  # closed with 1013
     assert fast in broker.subscribers and fast.queue.get_nowait() == '{"seq": 3}'
 
 

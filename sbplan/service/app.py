@@ -95,35 +95,31 @@ def create_app(service: Service, *, token: str | None = None, source: FrameSourc
         """The current detection: cells, obstacles (outlines and MARs in pixels and metres), the
         camera's movement, frame number and age."""
         snap = service.snapshot()
-        return models.State(**snap.result, **snap.info(), age_s=time.time() - snap.received)
+        return snap.model.model_copy(update={"age_s": time.time() - snap.received})
 
     @app.get("/obstacles.geojson", response_model=models.FeatureCollection, response_class=GeoJSONResponse,
              responses=_ERRORS, tags=["floor"])
     async def obstacles(response: Response) -> Any:
         """The current obstacles as GeoJSON (outline and MAR of each), world metres."""
         snap = service.snapshot()
-        geo = snap.cache.get("geojson")
-        if geo is None:
-            geo = snap.cache["geojson"] = models.FeatureCollection.model_validate(geojson(snap.detection))
         response.headers["X-Sbplan-Frame"] = str(snap.frame)
-        return geo
+        return await _cached(snap, "geojson", lambda: models.FeatureCollection.model_validate(geojson(snap.detection)))
 
     @app.get("/map.yaml", response_class=Response, responses={200: {"content": {"text/yaml": {}}}, **_ERRORS},
              tags=["floor"])
     async def map_yaml() -> Response:
         """The ROS 2 nav2 map_server YAML of the current occupancy (its image: GET /map.pgm)."""
-        snap, (_, meta) = _nav2(service)
+        snap = service.snapshot()
+        _, meta = await _cached(snap, "nav2", lambda: nav2_map(snap.detection))
         return Response(nav2_yaml(meta), media_type="text/yaml", headers={"X-Sbplan-Frame": str(snap.frame)})
 
     @app.get("/map.pgm", response_class=Response,
              responses={200: {"content": {"image/x-portable-graymap": {}}}, **_ERRORS}, tags=["floor"])
     async def map_pgm() -> Response:
         """The nav2 map image: 0 occupied, 254 free; row 0 is the top (largest y)."""
-        snap, (image, _) = _nav2(service)
-        pgm = snap.cache.get("pgm")
-        if pgm is None:
-            ok, buf = cv2.imencode(".pgm", image)
-            pgm = snap.cache["pgm"] = buf.tobytes()
+        snap = service.snapshot()
+        image, _ = await _cached(snap, "nav2", lambda: nav2_map(snap.detection))
+        pgm = await _cached(snap, "pgm", lambda: cv2.imencode(".pgm", image)[1].tobytes())
         return Response(pgm, media_type="image/x-portable-graymap", headers={"X-Sbplan-Frame": str(snap.frame)})
 
     @app.post("/detect", response_model=models.Detected, responses=_ERRORS, tags=["floor"], openapi_extra={
@@ -137,7 +133,8 @@ def create_app(service: Service, *, token: str | None = None, source: FrameSourc
         state; routes its new obstacles block are replanned and pushed."""
         data = await _image_body(request, service)
         snap, replanned = await service.detect(data)
-        return models.Detected(**snap.result, **snap.info(), routes_replanned=replanned)
+        fields = {k: v for k, v in snap.model if k != "age_s"}
+        return models.Detected.model_construct(**fields, routes_replanned=replanned)
 
     @app.post("/routes", response_model=models.Route, status_code=201, responses=_ERRORS, tags=["routes"],
               openapi_extra=_json_body(models.RouteRequest))
@@ -200,12 +197,13 @@ def _parse(model: type[BaseModel], body: bytes) -> Any:
         raise RequestValidationError(errors) from None
 
 
-def _nav2(service: Service):
-    snap = service.snapshot()
-    nav = snap.cache.get("nav2")
-    if nav is None:
-        nav = snap.cache["nav2"] = nav2_map(snap.detection)
-    return snap, nav
+async def _cached(snap: Any, key: str, make: Any) -> Any:
+    """An export of the snapshot, made once on a worker thread (two requests racing both make
+    it, and store the same value)."""
+    value = snap.cache.get(key)
+    if value is None:
+        value = snap.cache[key] = await asyncio.to_thread(make)
+    return value
 
 
 async def _image_body(request: Request, service: Service) -> bytes:

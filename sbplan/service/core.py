@@ -42,7 +42,7 @@ from ..detection import Calibration, Detection, Detector
 from ..errors import InputError, SbplanError
 from ..planning import PlanningMap, plan
 from . import images, models
-from .errors import NoFrameError, UnknownRouteError, status_and_code
+from .errors import BusyError, NoFrameError, UnknownRouteError, status_and_code
 from .state import RouteRecord, Snapshot, State, obstacle_key, route_model
 
 
@@ -65,11 +65,13 @@ class OutEvent:
 @dataclass(frozen=True)
 class Limits:
     """What one request may carry. ``max_body`` bytes for a frame (``max_json`` for anything
-    else), ``max_pixels`` for an image (read from its header before decoding)."""
+    else), ``max_pixels`` for an image (read from its header before decoding); at most
+    ``max_pending_frames`` posted frames wait for detection at once (each holds its bytes)."""
 
     max_body: int = 32 * 2**20
     max_json: int = 64 * 2**10
     max_pixels: int = 40_000_000
+    max_pending_frames: int = 4
 
 
 class Service:
@@ -111,6 +113,7 @@ class Service:
         self._route_ids = itertools.count(1)
         self._maps: OrderedDict[tuple[int, float, float], PlanningMap] = OrderedDict()  # state thread only
         self._seq = 0
+        self._pending = 0
         self._listeners: list[Callable[[OutEvent], None]] = []
 
     # -- reading ----------------------------------------------------------------------------------
@@ -194,7 +197,14 @@ class Service:
     async def detect(self, data: bytes, *, source: str = "post") -> tuple[Snapshot, list[str]]:
         """Async :meth:`submit_frame` for the event loop: PNG or JPEG bytes."""
         size = images.check_size(data, max_pixels=self.limits.max_pixels, expected=self.calibration.image_shape)
-        return await asyncio.wrap_future(self.submit_frame(_Encoded(bytes(data), size), source=source))
+        # the count is only touched on the event loop: no lock
+        if self._pending >= self.limits.max_pending_frames:
+            raise BusyError(f"{self._pending} frames are waiting for detection; send this one again later")
+        self._pending += 1
+        try:
+            return await asyncio.wrap_future(self.submit_frame(_Encoded(bytes(data), size), source=source))
+        finally:
+            self._pending -= 1
 
     def _decode(self, data: Any) -> np.ndarray:
         if isinstance(data, _Encoded):
@@ -213,7 +223,9 @@ class Service:
         attr = "mar_m" if self.use == "mar" else "outline_m"
         obstacles = tuple(part for ob in detection.obstacles if getattr(ob, attr) is not None
                           for part in _parts(Polygon(getattr(ob, attr))))
-        return dict(detection=detection, result=detection.to_json(), obstacles=obstacles,
+        result = detection.to_json()
+        return dict(detection=detection, result=result, checked=models.DetectionResult.model_validate(result),
+                    obstacles=obstacles,
                     keys=frozenset(obstacle_key(p) for p in obstacles),
                     bounds=self.bounds, received=received, source=source, name=name)
 
@@ -223,7 +235,10 @@ class Service:
         self._check_thread()
         old = self._state
         frame = old.snapshot.frame + 1 if old.snapshot is not None else 1
-        snap = Snapshot(frame=frame, **staged)
+        staged = dict(staged)
+        checked = staged.pop("checked")
+        info = dict(frame=frame, received=staged["received"], source=staged["source"], name=staged["name"])
+        snap = Snapshot(frame=frame, model=models.State.model_construct(**dict(checked), **info, age_s=0.0), **staged)
         changed: list[RouteRecord] = []
         routes = old.routes.copy()
         if old.snapshot is None or snap.keys != old.snapshot.keys:

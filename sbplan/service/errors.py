@@ -43,6 +43,12 @@ class UnsupportedMediaError(ServiceError):
     status, code = 415, "unsupported-media-type"
 
 
+class BusyError(ServiceError):
+    """Too many frames are waiting for detection."""
+
+    status, code = 503, "busy"
+
+
 class UnauthorizedError(ServiceError):
     status, code = 401, "unauthorized"
 

@@ -27,6 +27,18 @@ TOO_SLOW = 1013
 _ROUTE_EVENTS = frozenset({"route", "route-deleted"})
 
 
+@dataclass(frozen=True)
+class _Close:
+    """Put in a client's queue: close the connection with this code and reason."""
+
+    code: int
+    reason: str
+
+
+FELL_BEHIND = _Close(TOO_SLOW, "fell behind the events: reconnect, then GET /state and /routes")
+STOPPING = _Close(1001, "the service is stopping")
+
+
 @dataclass(eq=False)
 class Subscriber:
     owner: str | None
@@ -55,15 +67,18 @@ class Broker:
                 continue
             self._put(sub, event.text)
 
-    def _put(self, sub: Subscriber, text: str | None) -> None:
+    def _put(self, sub: Subscriber, item: str | _Close) -> None:
         try:
-            sub.queue.put_nowait(text)
+            sub.queue.put_nowait(item)
         except asyncio.QueueFull:
             # it fell behind: drop what it has not read and tell its sender to close
-            self.subscribers.discard(sub)
-            while not sub.queue.empty():
-                sub.queue.get_nowait()
-            sub.queue.put_nowait(None)
+            self._close(sub, FELL_BEHIND)
+
+    def _close(self, sub: Subscriber, why: _Close) -> None:
+        self.subscribers.discard(sub)
+        while not sub.queue.empty():
+            sub.queue.get_nowait()
+        sub.queue.put_nowait(why)
 
     def subscribe(self, owner: str | None) -> Subscriber:
         sub = Subscriber(owner)
@@ -76,8 +91,7 @@ class Broker:
     def close_all(self) -> None:
         """Ask every client's sender to close (server shutdown)."""
         for sub in list(self.subscribers):
-            self.subscribers.discard(sub)
-            self._put(sub, None)
+            self._close(sub, STOPPING)
 
 
 async def serve_client(ws: WebSocket, service: Service, broker: Broker, owner: str | None) -> None:
@@ -105,12 +119,12 @@ def _frame(service: Service) -> int | None:
 
 async def _send(ws: WebSocket, sub: Subscriber) -> None:
     while True:
-        text = await sub.queue.get()
+        item = await sub.queue.get()
         try:
-            if text is None:
-                await ws.close(TOO_SLOW, "fell behind the events: reconnect, then GET /state and /routes")
+            if isinstance(item, _Close):
+                await ws.close(item.code, item.reason)
                 return
-            await ws.send_text(text)
+            await ws.send_text(item)
         except (WebSocketDisconnect, OSError, RuntimeError):
             return  # the client is gone (mid-stream disconnects end here)
 

@@ -61,6 +61,8 @@ class Snapshot:
     received: float
     source: str
     name: str | None = None
+    #: what GET /state answers (age_s 0: set per request), validated once off the event loop
+    model: models.State | None = field(default=None, repr=False)
     #: exports computed on first request (GeoJSON, nav2 map): a pure function of the snapshot, so
     #: two requests computing one at once store the same value
     cache: dict[str, Any] = field(default_factory=dict, repr=False)
