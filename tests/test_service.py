@@ -27,7 +27,7 @@ from sbplan.service.images import image_header
 from sbplan.service.server import is_loopback
 from sbplan.service.sources import FolderSource
 
-from _service import (EMPTY_PNG, GOAL, MAP, SCENE_PNG, START, client, jpeg, receive, running, wait_for,
+from _service import (EMPTY_PNG, GOAL, MAP, SCENE_PNG, START, client, jpeg, png, receive, running, wait_for,
                       ws_connect)
 
 TOKEN = "s3cret-token-for-the-tests"
@@ -211,6 +211,23 @@ def test_bad_input_gets_a_4xx_with_a_code_and_one_line(cal):
         # and the service still works
         assert http.get("/state").json()["frame"] == 1
         assert http.post("/routes", json={"start": START, "goal": GOAL}).status_code == 201
+
+
+def test_a_camera_moved_too_far_is_a_conflict_not_a_crash(cal):
+    from sbplan.synth import SceneSpec, render_scene
+    from sbplan.synth.maps import recipe
+
+    moved, _ = render_scene(recipe("paper-8x6").floor, SceneSpec(n_obstacles=0, effects={"motion": (60, 0, 0, 1.0)}),
+                            seed=3)
+    events: list[OutEvent] = []
+    with running(cal, listeners=[events.append]) as (url, _), client(url) as http:
+        assert http.post("/detect", content=SCENE_PNG).status_code == 200
+        err = _is_error(http.post("/detect", content=png(moved)), 409, "camera-moved")
+        assert "recalibrate" in err["message"]
+        assert http.get("/state").json()["frame"] == 1  # the state stays the last good frame
+        rejected = [json.loads(e.text) for e in events if e.type == "frame-rejected"]
+        assert [r["code"] for r in rejected] == ["camera-moved"]
+        assert http.post("/detect", content=EMPTY_PNG).json()["frame"] == 2
 
 
 def test_frames_beyond_the_waiting_limit_are_refused_busy(cal):
