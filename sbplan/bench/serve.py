@@ -76,18 +76,21 @@ def floor_images(seed: int):
 
 
 def free_queries(obstacles, bounds, n: int, seed: int) -> list[bytes]:
-    """n request bodies: seeded start/goal pairs, at least a third of the floor apart, that
-    sbplan.plan solves on these obstacles."""
+    """n request bodies: seeded start/goal pairs where a robot can stand (farther than its radius
+    from every obstacle), at least a third of the floor apart, that sbplan.plan solves."""
+    import shapely
+
     import sbplan
     from ..errors import PlanningError
 
     rng = np.random.default_rng([seed, 23])
     x0, y0, x1, y1 = bounds
     span = min(x1 - x0, y1 - y0)
+    taken = shapely.union_all(obstacles).buffer(RADIUS_M * 1.05)
     out: list[bytes] = []
     while len(out) < n:
-        s, g = rng.uniform((x0, y0), (x1, y1), (2, 2))
-        if np.hypot(*(g - s)) < span / 3:
+        s, g = rng.uniform((x0 + RADIUS_M, y0 + RADIUS_M), (x1 - RADIUS_M, y1 - RADIUS_M), (2, 2))
+        if np.hypot(*(g - s)) < span / 3 or taken.intersects(shapely.MultiPoint([s, g])):
             continue
         try:
             sbplan.plan(obstacles, s, g, robot_radius=RADIUS_M, bounds=bounds)
