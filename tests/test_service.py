@@ -273,16 +273,22 @@ def test_a_token_guards_everything_but_health(cal):
             assert receive(ws)["type"] == "hello"
 
 
-def test_serve_refuses_an_open_host_without_a_token(tmp_path, capsys, monkeypatch):
+def test_serve_refuses_an_open_host_without_a_token_and_bad_options(cal, tmp_path, capsys, monkeypatch):
     monkeypatch.delenv("SBPLAN_TOKEN", raising=False)
-    cal = str(tmp_path / "missing.json")
-    assert main(["serve", "-c", cal, "--host", "0.0.0.0"]) == 2
+    missing = str(tmp_path / "missing.json")
+    assert main(["serve", "-c", missing, "--host", "0.0.0.0"]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("sbplan: error: --host 0.0.0.0 opens the service") and "\n" not in err
-    assert main(["serve", "-c", cal, "--host", "0.0.0.0", "--token", "short"]) == 2
+    assert main(["serve", "-c", missing, "--host", "0.0.0.0", "--token", "short"]) == 2
     assert "at least 16 characters" in capsys.readouterr().err
-    assert main(["serve", "-c", cal]) != 0  # a missing calibration: one line, no traceback
+    assert main(["serve", "-c", missing]) != 0  # a missing calibration: one line, no traceback
     assert "Traceback" not in capsys.readouterr().err
+    good = str(tmp_path / "cal.json")
+    cal.save(good)
+    assert main(["serve", "-c", good, "--planner", "teleport"]) == 1
+    assert "unknown planner 'teleport'" in capsys.readouterr().err
+    assert main(["serve", "-c", good, "--source", str(tmp_path / "nowhere")]) == 2
+    assert "not a folder of images" in capsys.readouterr().err
     assert is_loopback("127.0.0.1") and is_loopback("::1") and is_loopback("localhost")
     assert not is_loopback("0.0.0.0") and not is_loopback("192.168.1.5")
 

@@ -37,7 +37,7 @@ import numpy as np
 from pydantic import BaseModel
 from shapely.geometry import Polygon
 
-from .. import __version__
+from .. import __version__, registry
 from ..detection import Calibration, Detection, Detector
 from ..errors import InputError, SbplanError
 from ..planning import PlanningMap, plan
@@ -98,6 +98,9 @@ class Service:
             raise InputError(f"use: expected 'mar' or 'outline', got {use!r}")
         if max_routes < 1:
             raise InputError(f"max_routes: must be >= 1, got {max_routes}")
+        if not time_limit > 0:
+            raise InputError(f"time_limit: must be > 0 seconds, got {time_limit!r}")
+        registry.planner(planner)  # an unknown name fails here, not on every request
         self.calibration = calibration
         self.detector = detector or Detector(calibration)
         self.use, self.planner, self.time_limit, self.max_routes = use, planner, float(time_limit), int(max_routes)
