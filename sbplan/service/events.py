@@ -105,7 +105,8 @@ async def serve_client(ws: WebSocket, service: Service, broker: Broker, owner: s
         _, pending = await asyncio.wait(tasks, return_when=asyncio.FIRST_COMPLETED)
         for task in pending:
             task.cancel()
-        await asyncio.gather(*pending, return_exceptions=True)
+        # a receive on a connection that just dropped raises: that is how it ends, not an error
+        await asyncio.gather(*tasks, return_exceptions=True)
     except (WebSocketDisconnect, OSError, RuntimeError):
         pass  # the client left while we were greeting it
     finally:
