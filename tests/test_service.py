@@ -266,7 +266,7 @@ def test_a_token_guards_everything_but_health(cal):
             assert http.get("/state").json()["frame"] == 1
         with pytest.raises(InvalidStatus) as denied:
             ws_connect(url)
-        assert denied.value.response.status_code == 401
+        assert denied.value.response.status_code == 403
         with pytest.raises(InvalidStatus):
             ws_connect(url, additional_headers={"Authorization": "Bearer wrong-token-wrong-token"})
         with ws_connect(url, additional_headers={"Authorization": f"Bearer {TOKEN}"}) as ws:

@@ -344,13 +344,10 @@ class Guard:
         if scope["type"] == "http":
             return await _send_json(send, 401, body, headers)
         await receive()  # websocket.connect
-        if "websocket.http.response" in scope.get("extensions", {}):
-            # a plain HTTP 401 instead of the upgrade, so the client sees why
-            await send({"type": "websocket.http.response.start", "status": 401,
-                        "headers": [(b"content-type", b"application/json"), *headers]})
-            await send({"type": "websocket.http.response.body", "body": body.model_dump_json().encode()})
-        else:
-            await send({"type": "websocket.close", "code": 1008, "reason": problem})
+        # closing before accepting answers the upgrade with HTTP 403. (An HTTP 401 with a body
+        # through the ASGI "websocket.http.response" extension reaches the client too, but
+        # uvicorn's websockets protocol then logs an error for every refused connection.)
+        await send({"type": "websocket.close", "code": 1008, "reason": problem})
 
 
 def _too_large(limit: int, length: int | None = None) -> models.Error:
