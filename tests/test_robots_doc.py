@@ -18,36 +18,19 @@ import sys
 import time
 from pathlib import Path
 
-import httpx
-
+from sbplan.bench.serve import Server
 from test_docs import FLAGS, ROOT, blocks, console_steps
 
 PAGE = ROOT / "docs" / "robots.md"
 PORTS = {"8765": None, "8766": "a-token-for-the-docs-test-0123456789"}
 
 
-class Server:
-    def __init__(self, cwd: Path, env: dict, token: str | None):
-        env = dict(env)
-        env.pop("SBPLAN_TOKEN", None)
-        if token:
-            env["SBPLAN_TOKEN"] = token
-        self.proc = subprocess.Popen([sys.executable, "-m", "sbplan", "serve", "-c", "calibration.json", "--port", "0"],
-                                     cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        line = self.proc.stdout.readline()
-        assert line.startswith("sbplan serve: http://127.0.0.1:"), line + self.proc.stderr.read()
-        self.port = re.match(r"sbplan serve: http://127\.0\.0\.1:(\d+)", line).group(1)
-        self.url = f"http://127.0.0.1:{self.port}"
-
-    def clients(self) -> int:
-        return httpx.get(self.url + "/health", trust_env=False).json()["clients"]
-
-    def stop(self) -> None:
-        self.proc.terminate()
-        try:
-            self.proc.wait(10)
-        except subprocess.TimeoutExpired:
-            self.proc.kill()
+def start(cwd: Path, env: dict, token: str | None) -> Server:
+    env = dict(env)
+    env.pop("SBPLAN_TOKEN", None)
+    if token:
+        env["SBPLAN_TOKEN"] = token
+    return Server("calibration.json", cwd=cwd, env=env)
 
 
 def test_robots_page_runs(tmp_path):
@@ -67,7 +50,7 @@ def test_robots_page_runs(tmp_path):
         for port, token in PORTS.items():
             if f"127.0.0.1:{port}" in command:
                 if port not in servers:
-                    servers[port] = Server(tmp_path, env, token)
+                    servers[port] = start(tmp_path, env, token)
                 command = command.replace(f"127.0.0.1:{port}", f"127.0.0.1:{servers[port].port}")
         return command
 
@@ -84,11 +67,11 @@ def test_robots_page_runs(tmp_path):
                 script = tmp_path / f"client-{line}.py"
                 script.write_text(local(body))
                 server = next(iter(servers.values()))
-                before = server.clients()
+                before = server.health()["clients"]
                 proc = subprocess.Popen([sys.executable, str(script)], cwd=tmp_path, env=env, stdout=subprocess.PIPE,
                                         stderr=subprocess.STDOUT, text=True)
                 deadline = time.monotonic() + 30
-                while server.clients() == before:  # connected before the next command runs
+                while server.health()["clients"] == before:  # connected before the next command runs
                     assert proc.poll() is None and time.monotonic() < deadline, f"{where}: the client did not connect"
                     time.sleep(0.05)
                 expected = next((b for lang2, b, _ in found[i + 1:] if lang2 == "text"), "")

@@ -103,18 +103,28 @@ def free_queries(obstacles, bounds, n: int, seed: int) -> list[bytes]:
 
 # -- the server -----------------------------------------------------------------------------------
 class Server:
-    """``sbplan serve`` in a subprocess on 127.0.0.1 and a free port."""
+    """``sbplan serve -c CALIBRATION --port 0 [extra...]`` in a subprocess (on 127.0.0.1 and a
+    free port), started and answering ``/health`` when this returns."""
 
-    def __init__(self, calibration: Path, *extra: str):
+    def __init__(self, calibration: str | Path, *extra: str, cwd: str | Path | None = None,
+                 env: dict | None = None):
+        # its log goes to a file: a pipe nobody reads would stop the server once full
+        self.log = tempfile.TemporaryFile("w+")
         self.proc = subprocess.Popen([sys.executable, "-m", "sbplan", "serve", "-c", str(calibration), "--port", "0",
-                                      *extra], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                                      *extra], cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=self.log, text=True)
         line = self.proc.stdout.readline()
         if not line.startswith("sbplan serve: http://"):
             self.proc.kill()
-            raise RuntimeError(f"sbplan serve did not start: {line}{self.proc.stderr.read()}")
+            self.proc.wait()
+            self.log.seek(0)
+            raise RuntimeError(f"sbplan serve did not start: {line}{self.log.read()}")
         self.host, port = line.split("http://", 1)[1].split()[0].rsplit(":", 1)
         self.port = int(port)
         self._wait_until_up()
+
+    def health(self) -> dict:
+        status, body = asyncio.run(_once(self.host, self.port, "GET", "/health", b""))
+        return json.loads(body)
 
     def _wait_until_up(self, timeout: float = 60.0) -> None:
         deadline = time.monotonic() + timeout
@@ -138,6 +148,7 @@ class Server:
             self.proc.wait(10)
         except subprocess.TimeoutExpired:
             self.proc.kill()
+        self.log.close()
 
 
 # -- the clients ----------------------------------------------------------------------------------
