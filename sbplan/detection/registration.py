@@ -409,8 +409,21 @@ def thumbnail(gray: np.ndarray) -> np.ndarray:
     """The grey image made :data:`THUMBNAIL_FACTOR` times smaller (area average): what calibration
     keeps of the reference to tell movements a pitch apart by the floor's own texture."""
     h, w = gray.shape
-    f = THUMBNAIL_FACTOR
-    return cv2.resize(gray, (max(1, w // f), max(1, h // f)), interpolation=cv2.INTER_AREA)
+    small = _reduced(gray, (max(1, h // THUMBNAIL_FACTOR), max(1, w // THUMBNAIL_FACTOR)))
+    return np.clip(np.rint(small), 0, 255).astype(np.uint8)
+
+
+def _reduced(gray: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """``gray`` reduced to ``shape`` (H, W) by area averaging, by halvings while it is at least
+    twice as large (OpenCV halves about ten times faster than it reduces by 4 at once), in float32
+    (rounding between halvings would blur the floor's faint texture). Returns float32."""
+    gray = gray.astype(np.float32)
+    while gray.shape[0] >= 2 * shape[0] and gray.shape[1] >= 2 * shape[1] \
+            and gray.shape[0] % 2 == 0 and gray.shape[1] % 2 == 0:
+        gray = cv2.resize(gray, (gray.shape[1] // 2, gray.shape[0] // 2), interpolation=cv2.INTER_AREA)
+    if gray.shape != tuple(shape):
+        gray = cv2.resize(gray, (shape[1], shape[0]), interpolation=cv2.INTER_AREA)
+    return gray
 
 
 def _texture(img: np.ndarray) -> np.ndarray:
@@ -424,7 +437,7 @@ def _view_scores(reference_thumb: np.ndarray, frame: np.ndarray, matrices: list[
     correlation over the floor between symbols, on thumbnails)."""
     f = THUMBNAIL_FACTOR
     th, tw = reference_thumb.shape
-    small = cv2.resize(frame, (tw, th), interpolation=cv2.INTER_AREA)
+    small = _reduced(frame, (th, tw))
     tex = _texture(small)
     # the floor between the symbols: the printed grid looks the same a pitch away, its floor does not
     ref = reference_thumb.astype(np.float32)
@@ -513,8 +526,6 @@ def _motion(matrix: np.ndarray, rms: float, used: int, model: str, image_shape, 
 
 #: Pixels of floor kept around a symbol's bounding box when its grey-level centre is measured.
 CENTRE_MARGIN_PX = 3
-#: The most pixels across a symbol's square that :func:`grey_centres` reads (larger ones are sampled).
-CENTRE_SAMPLES = 64
 #: Grey levels below the floor's at which ink starts to weigh (keeps floor grain out of the centre).
 CENTRE_FLOOR_NOISE = 10.0
 
@@ -559,18 +570,13 @@ def grey_centres(gray: np.ndarray, boxes: np.ndarray, side: int) -> np.ndarray:
     inside = (x0 >= 0) & (y0 >= 0) & (x0 + side <= w) & (y0 + side <= h)
     if not inside.any():
         return out
-    # Large symbols (a 4K camera) are read every `step` pixels: the centre of darkness of a symbol
-    # 150 px across needs no more than a 64 x 64 sample of it, and the cost stays that of one.
-    step = max(1, -(-side // CENTRE_SAMPLES))
-    r = np.arange(0, side, step)
-    rows = y0[inside][:, None] + r
-    cols = x0[inside][:, None] + r
-    win = gray[rows[:, :, None], cols[:, None, :]].astype(np.float32)
+    # one copy of each window's rows (a fancy index per pixel costs 25 times more)
+    win = np.lib.stride_tricks.sliding_window_view(gray, (side, side))[y0[inside], x0[inside]].astype(np.float32)
     ring = np.concatenate([win[:, 0, :], win[:, -1, :], win[:, 1:-1, 0], win[:, 1:-1, -1]], axis=1)
     floor = ring.mean(axis=1)
     wt = np.maximum(floor[:, None, None] - CENTRE_FLOOR_NOISE - win, 0)
     total = wt.sum(axis=(1, 2))
-    r = r.astype(np.float32)
+    r = np.arange(side, dtype=np.float32)
     cx = (wt.sum(axis=1) @ r) / np.maximum(total, 1e-6)
     cy = (wt.sum(axis=2) @ r) / np.maximum(total, 1e-6)
     good = total > 0
