@@ -40,7 +40,7 @@ from shapely.geometry import Polygon
 from .. import __version__, registry
 from ..detection import Calibration, Detection, Detector
 from ..errors import InputError, SbplanError
-from ..planning import PlanningMap, plan
+from ..planning import PlanningMap, detection_obstacles, plan
 from . import images, models
 from .errors import BusyError, NoFrameError, UnknownRouteError, status_and_code
 from .state import RouteRecord, Snapshot, State, obstacle_key, route_model
@@ -223,9 +223,8 @@ class Service:
 
     def _stage(self, detection: Detection, *, source: str, name: str | None, received: float) -> dict:
         """The work of making a snapshot that needs no state (runs on the detection thread)."""
-        attr = "mar_m" if self.use == "mar" else "outline_m"
-        obstacles = tuple(part for ob in detection.obstacles if getattr(ob, attr) is not None
-                          for part in _parts(Polygon(getattr(ob, attr))))
+        found = detection_obstacles(detection, use=self.use, source=source)
+        obstacles = tuple(part for poly in found.polygons for part in _parts(poly))
         result = detection.to_json()
         return dict(detection=detection, result=result, checked=models.DetectionResult.model_validate(result),
                     obstacles=obstacles,
