@@ -49,10 +49,6 @@ class BusyError(ServiceError):
     status, code = 503, "busy"
 
 
-class UnauthorizedError(ServiceError):
-    status, code = 401, "unauthorized"
-
-
 def status_and_code(exc: SbplanError) -> tuple[int, str]:
     """The HTTP status and error code of one of sbplan's errors.
 
