@@ -18,6 +18,10 @@ import numpy as np
 
 from .errors import ImageError
 
+#: An image the pipeline takes: a path of an image file, or an array (H, W), (H, W, 3) or (H, W, 4)
+#: (see :func:`as_gray`).
+ImageInput = str | os.PathLike | np.ndarray
+
 
 def as_gray(image: Any, *, name: str = "image") -> np.ndarray:
     """Validate an image array and return it as 8-bit grayscale.
@@ -95,7 +99,7 @@ def write_atomic(path: str | os.PathLike, write: Callable[[Any], None] | bytes |
         # (a replaced file keeps its mode)
         os.chmod(tmp, p.stat().st_mode & 0o7777 if p.exists() else 0o644)
         mode = "wb" if binary and not isinstance(write, str) else "w"
-        with os.fdopen(fd, mode, **({} if "b" in mode else {"encoding": "utf-8"})) as fh:
+        with os.fdopen(fd, mode, encoding=None if "b" in mode else "utf-8") as fh:
             if callable(write):
                 write(fh)
             else:

@@ -80,6 +80,12 @@ def _pair(table: dict, key: str, where: str, required: bool = False) -> tuple[fl
     return x, y
 
 
+def _required_pair(table: dict, key: str, where: str) -> tuple[float, float]:
+    pair = _pair(table, key, where, required=True)
+    assert pair is not None  # _pair raises when a required key is missing
+    return pair
+
+
 def load_workspace(path: str | os.PathLike) -> Workspace:
     """Read a ``workspace.toml`` (or the one in a map folder)."""
     p = Path(path)
@@ -94,7 +100,7 @@ def load_workspace(path: str | os.PathLike) -> Workspace:
     grid, origin = data.get("grid", {}), data.get("origin", {})
     robot, route = data.get("robot", {}), data.get("route", {})
     return Workspace(
-        pitch_m=_pair(grid, "pitch_m", f"{p} [grid]", required=True),
+        pitch_m=_required_pair(grid, "pitch_m", f"{p} [grid]"),
         origin_m=_pair(origin, "xy_m", f"{p} [origin]"),
         robot_radius_m=float(robot.get("radius_m", 0.0)),
         start_m=_pair(route, "start_m", f"{p} [route]"),

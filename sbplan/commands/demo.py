@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from ..errors import MapFormatError
+
 HELP = "calibrate, detect and plan a route on an example map (default maps/paper-8x6)"
 
 
@@ -18,10 +20,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # imported when the command runs: the CLI starts without loading numpy, OpenCV and the pipeline
     from ..detection import exports
     from ..detection.calibration import calibrate
     from ..detection import Detector
-    from ..errors import MapFormatError
     from ..imageio import load_image, write_json
     from ..workspace import load_workspace
     from .detect import summary_lines

@@ -39,6 +39,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # imported when the command runs: the CLI starts without loading numpy, OpenCV and the pipeline
     from ..imageio import write_image
     from ..planning import PlanningMap, load_obstacles, plan
     from ..planning.ompl_planners import quiet

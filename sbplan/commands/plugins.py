@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import warnings
 
 HELP = "list the installed stages (kind, name, origin, description) and plugins that failed"
 
@@ -14,8 +15,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import warnings
-
+    # imported when the command runs: the CLI starts without loading numpy, OpenCV and the pipeline
     from .. import registry
 
     with warnings.catch_warnings():

@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import argparse
 import re
+from pathlib import Path
+
+from ..errors import InputError, SceneError
 
 HELP = "render a synthetic floor with obstacles and ground truth, or rebuild an example map"
 DESCRIPTION = ("Render reference.png (the empty floor), scene-XX.png with obstacles and scene-XX.json ground "
@@ -27,8 +30,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _pair(text: str, option: str, sep: str = "x") -> tuple[int, int]:
-    from ..errors import InputError
-
     m = re.fullmatch(rf"\s*(-?\d+)\s*{sep}\s*(-?\d+)\s*", text or "")
     if not m:
         raise InputError(f"{option}: expected two integers like 1280{sep}960, got {text!r}")
@@ -36,9 +37,7 @@ def _pair(text: str, option: str, sep: str = "x") -> tuple[int, int]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
-    from ..errors import InputError, SceneError
+    # imported when the command runs: the CLI starts without loading numpy, OpenCV and the pipeline
     from ..imageio import write_atomic, write_image
     from ..synth import CONDITIONS, DEFAULT_SYMBOL, FloorSpec, SceneSpec, render_reference, render_scene
     from ..synth.maps import MAPS, build_map

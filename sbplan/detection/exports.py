@@ -12,7 +12,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from ..imageio import write_atomic, write_image
+from ..imageio import as_gray, write_atomic, write_image
 from ..polygons import signed_area
 from .result import Detection
 
@@ -25,8 +25,6 @@ def overlay_image(image: np.ndarray, detection: Detection) -> np.ndarray:
 
     The detection's pixel coordinates are the calibration's; they are drawn where the camera's
     movement (``detection.camera``) puts them in this frame."""
-    from ..imageio import as_gray
-
     gray = as_gray(image)
     out = cv2.cvtColor(gray, cv2.COLOR_GRAY2BGR)
     grid = detection.calibration.grid

@@ -17,6 +17,7 @@ import shapely
 from shapely.geometry import LineString, Point, Polygon
 
 from .. import registry
+from ..contracts import Planner
 from ..errors import InputError
 from .geometry import as_point, as_polygons, nonneg
 from .planning_map import PlanningMap
@@ -86,7 +87,7 @@ def _map_for(obstacles: Any, start: np.ndarray, goal: np.ndarray, robot_radius: 
                                              include=(start, goal)))
 
 
-def plan(obstacles: Any, start: Any, goal: Any, *, robot_radius: float | None = None, planner: Any = "aux-corner",
+def plan(obstacles: Any, start: Any, goal: Any, *, robot_radius: float | None = None, planner: str | Planner = "aux-corner",
          bounds: Sequence[float] | None = None, time_limit: float = 1.0, margin: float | None = None) -> Route:
     """Plan a collision-free route for a disc robot among polygonal obstacles.
 
@@ -124,7 +125,7 @@ def plan(obstacles: Any, start: Any, goal: Any, *, robot_radius: float | None = 
     return stage.solve(Problem(pm, s, g), time_limit=tl)
 
 
-def replan(route: Route, position: Any, new_obstacles: Any, *, planner: Any = None,
+def replan(route: Route, position: Any, new_obstacles: Any, *, planner: str | Planner | None = None,
            time_limit: float = 1.0) -> Route:
     """Update a route after new obstacles appeared, from the robot's current position.
 
@@ -169,6 +170,8 @@ def replan(route: Route, position: Any, new_obstacles: Any, *, planner: Any = No
     if not touched:
         return Route(remaining, status=route.status, planner=route.planner, time=time.perf_counter() - t0,
                      replanned=False, map=pm, goal=route.goal)
+    if route.goal is None:  # only an empty route has none, and an empty route touches nothing
+        raise InputError("route: has no goal to replan to")
     out = stage.solve(Problem(pm, p, route.goal), time_limit=tl)
     out.time = time.perf_counter() - t0
     return out

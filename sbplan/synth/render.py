@@ -8,6 +8,7 @@ it, adds signal-dependent noise, quantizes to 8 bits and optionally JPEG-compres
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 from typing import Callable
@@ -117,7 +118,7 @@ def _expose(refl: np.ndarray, effects: Effects, floor: FloorSpec, cam: Camera, r
     if effects.shadows and obstacle_alpha is not None:
         length = 0.14 * pitch
         dx, dy = length * math.cos(light_angle), length * math.sin(light_angle)
-        shifted = cv2.warpAffine(obstacle_alpha, np.float32([[1, 0, dx], [0, 1, dy]]), (w, h))
+        shifted = cv2.warpAffine(obstacle_alpha, np.array([[1, 0, dx], [0, 1, dy]], np.float32), (w, h))
         sigma = 0.07 * pitch
         shadow = cv2.GaussianBlur(np.maximum(shifted, obstacle_alpha), (0, 0), sigma)
         shade = 1.0 - effects.shadows * shadow * (1.0 - obstacle_alpha)
@@ -180,8 +181,6 @@ def render_reference(floor: FloorSpec, *, seed: int = 0, condition: str = "clean
     cond = condition_effects(condition)
     base = Effects(tilt=cond.tilt, distortion=cond.distortion)
     if effects:
-        import dataclasses
-
         try:
             base = dataclasses.replace(base, **effects)
         except TypeError as exc:
@@ -225,7 +224,7 @@ def render_scene(floor: FloorSpec, scene: SceneSpec | None = None, *, seed: int 
     if effects.wear:
         _wear(refl, floor, effects.wear, r_wear)
     motion = _motion(floor, effects, seed, r_motion)
-    union_alpha = np.zeros_like(refl) if polys else None
+    alpha_sum = np.zeros_like(refl)  # the obstacles' coverage, added up
     textures = []
     for poly, kind in zip(polys, kinds):
         name = scene.textures[int(r_tex.integers(len(scene.textures)))]
@@ -240,7 +239,8 @@ def render_scene(floor: FloorSpec, scene: SceneSpec | None = None, *, seed: int 
         tex = texture(kind, name, (h, w), centre, size, r_tex, contrast=effects.texture_contrast)
         sub = refl[y0:y0 + h, x0:x0 + w]
         sub += (tex - sub) * a
-        np.maximum(union_alpha[y0:y0 + h, x0:x0 + w], a, out=union_alpha[y0:y0 + h, x0:x0 + w])
+        np.maximum(alpha_sum[y0:y0 + h, x0:x0 + w], a, out=alpha_sum[y0:y0 + h, x0:x0 + w])
+    union_alpha = alpha_sum if polys else None
     img, draws = _expose(refl, effects, floor, cam, r_light, r_noise, union_alpha,
                          None if motion is None else motion_matrix(floor.width, floor.height, motion))
     truth = _truth(floor, scene, effects, cam, footprints, polys, kinds, textures, seed, draws, motion)
@@ -328,18 +328,21 @@ def _wear(refl: np.ndarray, floor: FloorSpec, amount: float, rng: np.random.Gene
         refl *= 1.0 - rng.uniform(0.2, 0.45) * alpha
 
 
-def _place_obstacles(floor: FloorSpec, scene: SceneSpec, rng: np.random.Generator):
+def _place_obstacles(floor: FloorSpec, scene: SceneSpec,
+                     rng: np.random.Generator) -> tuple[list[np.ndarray], list[str]]:
     if scene.obstacles is not None:
-        polys = [np.asarray(o, dtype=np.float64) for o in scene.obstacles]
-        for i, p in enumerate(polys):
+        given = [np.asarray(o, dtype=np.float64) for o in scene.obstacles]
+        for i, p in enumerate(given):
             if not Polygon(p).is_valid:
                 raise SceneError(f"obstacles[{i}]: not a valid simple polygon")
-        return polys, ["polygon"] * len(polys)
+        return given, ["polygon"] * len(given)
     dx, dy = floor.pitch_px
     pitch = 0.5 * (dx + dy)
     lo_x, hi_x = floor.col_x[0] - dx / 2, floor.col_x[-1] + dx / 2
     lo_y, hi_y = floor.row_y[0] - dy / 2, floor.row_y[-1] + dy / 2
-    polys, kinds, shapes = [], [], []
+    polys: list[np.ndarray] = []
+    kinds: list[str] = []
+    shapes: list[Polygon] = []
     for _ in range(scene.n_obstacles):
         kind = scene.kinds[int(rng.integers(len(scene.kinds)))]
         best = None

@@ -9,6 +9,7 @@ from typing import Iterable
 from textual.app import App, SystemCommand
 from textual.binding import Binding
 from textual.screen import Screen
+from textual_image.widget import HalfcellImage
 
 from ..errors import SbplanError
 from .screens.calibration import CalibrationScreen
@@ -67,9 +68,7 @@ class SbplanApp(App):
     def __init__(self, map_dir: str | os.PathLike | None = None, *, auto: bool = True, image_class=None,
                  hide_timings: bool = False) -> None:
         super().__init__()
-        if image_class is None:
-            from textual_image.widget import HalfcellImage as image_class
-        self.image_class = image_class
+        self.image_class = HalfcellImage if image_class is None else image_class
         self.auto = auto
         self.hide_timings = hide_timings
         self.session = Session.from_map(map_dir)
@@ -100,5 +99,5 @@ class SbplanApp(App):
                             ("route", "Route screen")):
             yield SystemCommand(title, f"switch to the {mode} screen", partial(self.switch_mode, mode))
         yield SystemCommand("Help", "keys and what each screen does", self.action_help)
-        for title, help_text, mode, action in ACTIONS:
-            yield SystemCommand(title, help_text, partial(self.run_on, mode, action))
+        for title, help_text, action_mode, action in ACTIONS:
+            yield SystemCommand(title, help_text, partial(self.run_on, action_mode, action))

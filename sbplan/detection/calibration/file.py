@@ -15,6 +15,7 @@ import cv2
 import numpy as np
 
 from ... import registry
+from ...contracts import DescriptorMatcher, Stage
 from ...errors import CalibrationError
 from ...imageio import write_json
 from ...polygons import signed_areas
@@ -96,14 +97,14 @@ class Calibration:
     def symbols_expected(self) -> int:
         return self.grid.rows * self.grid.cols
 
-    def stage(self, kind: str, override: Any = None):
+    def stage(self, kind: str, override: str | Stage | None = None):
         """The stage instance of ``kind``: ``override`` (a name or an instance) or the calibrated one."""
         if override is not None:
             return registry.registry().create(kind, override)
         spec = self.stages[kind]
         return registry.registry().create(kind, spec["name"], **spec.get("options", {}))
 
-    def matching_for(self, matcher: Any) -> tuple[np.ndarray, float]:
+    def matching_for(self, matcher: DescriptorMatcher) -> tuple[np.ndarray, float]:
         """The reference descriptor and the match threshold under ``matcher`` (a stage instance).
 
         The calibrated ones when ``matcher`` is the calibrated matcher with the same options;
