@@ -149,6 +149,13 @@ class FrameReader:
             self._gen += 1
             self._cond.notify_all()
 
+    def join(self, timeout: float) -> None:
+        """Wait up to ``timeout`` seconds for the current reader thread to end (after :meth:`stop`);
+        a thread blocked in a read is not waited for."""
+        t = self._thread
+        if t is not None and t is not threading.current_thread() and not self.blocked_reading:
+            t.join(timeout)
+
     def get(self, timeout: float) -> Frame | Notice | None:
         """The next frame or notice, or None when none came within ``timeout`` seconds."""
         with self._cond:
@@ -257,6 +264,9 @@ class FrameReader:
                         self.stats.missing += r.number - after - 1
                     after = r.number
             elif r.status == "end":
+                # released before the pipeline hears of it: a program that exits right after the
+                # end must not kill this thread inside the decoder's teardown
+                cap.close()
                 self._put(gen, Notice("end"))
                 return "end"
             else:  # lost

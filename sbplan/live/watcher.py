@@ -331,6 +331,7 @@ class Watcher:
             reason = "interrupted"
         finally:
             reader.stop()
+            reader.join(1.0)
         self.reason = reason
         yield self._event("ended", reason=reason, exit_code=self.exit_code, error=self.error, stats=self.stats())
 
