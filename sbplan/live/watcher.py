@@ -12,7 +12,7 @@ import collections
 import math
 import threading
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Callable, Iterator
 
 import numpy as np
@@ -64,8 +64,8 @@ class LiveState:
         The current route (with ``start``/``goal``); ``route_error`` says why there is none.
     image : ndarray (H, W) uint8 or None
         The last frame processed (kept only with ``keep_image``).
-    stats : dict
-        The counters of :meth:`Watcher.stats`.
+
+    The counters (frames per second, drops, latency) are :meth:`Watcher.stats`.
     """
 
     frame: int | None
@@ -78,7 +78,6 @@ class LiveState:
     route: Any = None
     route_error: str | None = None
     image: np.ndarray | None = None
-    stats: dict = field(default_factory=dict)
 
 
 def _point(value: Any, name: str) -> tuple[float, float] | None:
@@ -184,6 +183,8 @@ class Watcher:
         self.tracker = ObstacleTracker(reach_px=1.5 * pitch)
         self._state = LiveState(None, None, np.zeros(shape, bool))
         self._stop_reason: str | None = None
+        self._running = threading.Event()
+        self._running.set()
         self._replan = threading.Event()
         self._seq = 0
         self.reason: str | None = None
@@ -214,6 +215,19 @@ class Watcher:
         if self._stop_reason is None:
             self._stop_reason = reason
         self.reader.stop()
+        self._running.set()
+
+    def pause(self) -> None:
+        """Stop taking frames until :meth:`resume`: a live source's frames are dropped meanwhile
+        (the reader keeps the latest), a file waits; no stall is reported while paused."""
+        self._running.clear()
+
+    def resume(self) -> None:
+        self._running.set()
+
+    @property
+    def paused(self) -> bool:
+        return not self._running.is_set()
 
     def replan(self, start: Any = None, goal: Any = None) -> None:
         """Plan the route anew on the next frame (with a new start and goal when given)."""
@@ -279,6 +293,10 @@ class Watcher:
                 if self._stop_reason is not None:
                     reason = self._stop_reason
                     break
+                if not self._running.is_set():
+                    self._running.wait(POLL_S)
+                    last_frame_at = time.perf_counter()  # a pause is not a stall
+                    continue
                 item = reader.get(POLL_S)
                 now = time.perf_counter()
                 if next_stats is not None and now >= next_stats:
@@ -429,7 +447,7 @@ class Watcher:
         self._state = LiveState(
             frame.number, frame.time_ms, self.cells.stable.copy(), raw if raw is not None else old.seen,
             tuple(self.tracker.obstacles), motion if motion is not None else old.camera, camera_error,
-            self._route, self._route_error, frame.image if self.keep_image else None, self.stats())
+            self._route, self._route_error, frame.image if self.keep_image else None)
         # the latency an event reports runs to when it is handed out
         t = time.perf_counter()
         for e in events:
