@@ -23,6 +23,11 @@ import numpy as np
 
 from ..errors import InputError, SbplanError
 
+# FFmpeg's own complaint about a broken frame would land on the terminal (over the TUI); the watch
+# counts such frames and reports them in its events. OpenCV reads this once, when it first uses
+# FFmpeg, so it is set on import (a value the user set is kept).
+os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
+
 #: Image endings a folder source reads, in any letter case.
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm", ".webp")
 #: Consecutive undecodable reads after which a file is taken to have ended (OpenCV's FFmpeg

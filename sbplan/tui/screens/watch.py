@@ -5,6 +5,7 @@ shows its state and events."""
 
 from __future__ import annotations
 
+import collections
 from pathlib import Path
 
 from textual import work
@@ -12,7 +13,7 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical, VerticalScroll
 from textual.screen import Screen
-from textual.widgets import Button, DataTable, Footer, Header, Label, Log, Static
+from textual.widgets import Button, Checkbox, DataTable, Footer, Header, Label, Log, Static
 from textual.worker import get_current_worker
 
 from ...errors import InputError
@@ -83,6 +84,8 @@ class WatchScreen(Screen):
         super().__init__(**kwargs)
         self._source = source
         self.watcher = None
+        # events from the worker, drained by the refresh timer: the pipeline never waits for the screen
+        self._inbox: collections.deque = collections.deque()
         self._shown_frame = None
         self._ended: dict | None = None
 
@@ -109,6 +112,7 @@ class WatchScreen(Screen):
                 yield PathInput(self._source if self._source is not None else default_source(self.session.map_dir),
                                 suffixes=(".avi", ".mp4", ".mkv", ".mov"),
                                 placeholder="video, image folder, camera index or URL", id="watch-source")
+                yield Checkbox("replay a file at its own rate", value=True, id="watch-realtime", compact=True)
                 yield Button("Start / stop (w)", id="watch-toggle", variant="primary", compact=True)
                 yield Static("not watching", id="watch-status")
                 yield Label("Obstacles", classes="heading")
@@ -136,14 +140,18 @@ class WatchScreen(Screen):
             source = self.query_one("#watch-source", PathInput).value.strip()
             if not source:
                 raise InputError("source: type a video file, image folder, camera index or URL")
-            from ...live import Watcher
+            from ...live import Watcher, open_source, paced
 
             start, goal = (s.start, s.goal) if s.start is not None and s.goal is not None else (None, None)
-            self.watcher = Watcher(source, cal, start=start, goal=goal, keep_image=True)
+            src = open_source(source)
+            if not src.live and self.query_one("#watch-realtime", Checkbox).value:
+                src = paced(src)  # as the camera delivered it: the latest frame, drops counted
+            self.watcher = Watcher(src, cal, start=start, goal=goal, keep_image=True)
         except Exception as exc:  # noqa: BLE001  (shown to the operator; the app stays usable)
             self.app.report_error(exc)
             return
         self._ended, self._shown_frame = None, None
+        self._inbox.clear()
         self.query_one("#watch-log", Log).clear()
         self._run(self.watcher)
 
@@ -189,20 +197,19 @@ class WatchScreen(Screen):
             for event in watcher.events():
                 if worker.is_cancelled or not self.app.is_running:
                     watcher.stop()
-                    continue
-                self.app.call_from_thread(self._event, event)
+                self._inbox.append(event)
         except Exception as exc:  # noqa: BLE001  (a bug: shown, the app stays usable)
             if self.app.is_running:
                 self.app.call_from_thread(self.app.report_error, exc)
 
-    def _event(self, event: dict) -> None:
+    def _event(self, event: dict) -> bool:
+        """Show one event; True when the picture should be redrawn."""
         self.query_one("#watch-log", Log).write_line(event_line(event))
         if event["type"] == "ended":
             self._ended = event
             if event["error"]:
                 self.notify(event["error"], title="watch ended", severity="error", timeout=10)
-        if event["type"].startswith("obstacle_") or event["type"] in ("route", "ended"):
-            self._refresh(force=True)
+        return event["type"].startswith("obstacle_") or event["type"] in ("route", "ended")
 
     # -- view ------------------------------------------------------------------------------------
     def _refresh(self, force: bool = False) -> None:
@@ -210,6 +217,8 @@ class WatchScreen(Screen):
         status = self.query_one("#watch-status", Static)
         if w is None:
             return
+        while self._inbox:
+            force = self._event(self._inbox.popleft()) or force
         state = w.state
         stats = w.stats()
         if state.image is not None and (force or state.frame != self._shown_frame):
