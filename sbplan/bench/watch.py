@@ -5,6 +5,8 @@ entering, sliding and leaving, a person's shadow, a camera bump, a dropped, a co
 frame) is rendered once, kept in memory and written as an MJPG AVI; a calibration is made on its
 reference. Then, with one OpenCV thread:
 
+- **detection alone**: ``Detector.find_cells`` on every fifth frame, 10 times each; the least CPU
+  time of the 10 is what the frame costs when nothing else disturbs the core.
 - **throughput** (frames as fast as the pipeline takes them, every frame): frames in memory through
   :class:`sbplan.live.Watcher` (no decoding), as the watch runs by default (a frame that did not
   change is not detected again) and with every frame detected (``--every-frame``); the AVI through
@@ -132,6 +134,21 @@ def measure(*, sizes=((1280, 960), (1920, 1080)), frames: int = 60, loops: int =
                 src = IterableSource(played, live=False, fps=fps)
                 return paced(src) if live_rate else src
 
+            # detection of one frame on its own, each frame repeated: the least CPU of the repeats is
+            # close to what a quiet machine takes (others' load only ever adds)
+            from sbplan.detection import Detector
+
+            det = Detector(cal)
+            per_frame = []
+            for image in images[::5]:
+                runs = []
+                for _ in range(10):
+                    c0 = time.thread_time()
+                    det.find_cells(image)
+                    runs.append(time.thread_time() - c0)
+                per_frame.append((min(runs), float(np.median(runs))))
+            row["detect_cpu_ms"] = {"min_of_10": 1e3 * float(np.median([a for a, _ in per_frame])),
+                                    "median": 1e3 * float(np.median([b for _, b in per_frame]))}
             # throughput, no decoding: as the watch runs, and every frame detected
             for key, skip in (("memory", True), ("memory_every_frame", False)):
                 st, wall, cpu = _watch(mem(), cal, hysteresis=hysteresis, latest=False, skip_unchanged=skip)
@@ -215,6 +232,9 @@ def format_tables(result: dict) -> str:
         lines.append(f"  {'AVI: decoding + pipeline (process CPU)':<52} {a['fps']:8.1f} {a['cpu_ms_per_frame']:13.2f}"
                      f"   (pipeline thread {a['pipeline_cpu_ms_per_frame']:.2f})")
         lines.append(f"  {'decoding alone (MJPG, cv2.VideoCapture)':<52} {d['fps']:8.1f} {d['cpu_ms_per_frame']:13.2f}")
+        dc = r["detect_cpu_ms"]
+        lines.append(f"  {'one frame detected (find_cells), 10 repeats: least':<52} {'':>8} {dc['min_of_10']:13.2f}"
+                     f"   (median {dc['median']:.2f})")
         lines.append(f"  {'live at ' + format(s['fps'], 'g') + ' fps, one stream':<52} {'processed':>10} {'dropped':>8} "
                      f"{'median ms':>10} {'p99 ms':>8}")
         for key, label in (("live_memory", "frames from memory"), ("live_avi", "frames decoded from the AVI")):

@@ -52,7 +52,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--every-frame", action="store_true",
                         help="detect every frame, even one that did not change since the last (slower)")
     parser.add_argument("--change-threshold", type=float, default=10.0, metavar="LEVELS",
-                        help="grey levels a 4x4 block must change by for a frame to be detected again (default 10)")
+                        help="grey levels some part of the frame (a 2x2 mean every 4 px) must change by for the frame "
+                             "to be detected again (default 10)")
     parser.add_argument("--camera-tolerance", type=float, default=1.0, metavar="PX",
                         help="report a camera movement beyond this many pixels (default 1)")
     add_stage_arguments(parser)

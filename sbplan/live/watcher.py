@@ -32,7 +32,9 @@ EXIT_CODES = {
     "interrupted": 130,  # Ctrl-C (SIGINT)
     "terminated": 143,  # SIGTERM
 }
-#: Side of the thumbnail blocks (pixels) compared to tell an unchanged frame.
+#: The thumbnail compared to tell an unchanged frame takes one 2 x 2-pixel mean per THUMB_BLOCK x
+#: THUMB_BLOCK pixels (a bilinear quarter-size resize: a sixth of the cost of whole-block means,
+#: and anything hiding part of a symbol covers many such samples).
 THUMB_BLOCK = 4
 #: Latencies kept for the median and 99th percentile.
 LATENCY_WINDOW = 10000
@@ -117,9 +119,9 @@ class Watcher:
     robot_radius : float, optional
         Default: the calibration's workspace's.
     skip_unchanged : bool
-        Reuse the last frame's cells when a frame's 4 x 4-pixel block means differ from the last
-        detected frame's by at most ``change_threshold`` grey levels everywhere (a still floor
-        costs a thumbnail, not a detection).
+        Reuse the last frame's cells when a frame's thumbnail (a 2 x 2-pixel mean every 4 pixels)
+        differs from the last detected frame's by at most ``change_threshold`` grey levels
+        everywhere (a still floor costs a thumbnail, not a detection).
     camera_tolerance_px : float
         A camera movement is reported when it moves some image corner by more than this since
         the last report.
@@ -368,7 +370,7 @@ class Watcher:
         thumb = None
         if self.skip_unchanged and self._last_raw is not None and not self._replan.is_set():
             h, w = image.shape[:2]
-            thumb = cv2.resize(image, (w // THUMB_BLOCK, h // THUMB_BLOCK), interpolation=cv2.INTER_AREA)
+            thumb = cv2.resize(image, (w // THUMB_BLOCK, h // THUMB_BLOCK), interpolation=cv2.INTER_LINEAR)
             unchanged = (self._thumb is not None and thumb.shape == self._thumb.shape
                          and float(cv2.absdiff(thumb, self._thumb).max()) <= self.change_threshold)
         if unchanged:
@@ -395,7 +397,7 @@ class Watcher:
             if self.skip_unchanged:
                 h, w = image.shape[:2]
                 self._thumb = thumb if thumb is not None else cv2.resize(
-                    image, (w // THUMB_BLOCK, h // THUMB_BLOCK), interpolation=cv2.INTER_AREA)
+                    image, (w // THUMB_BLOCK, h // THUMB_BLOCK), interpolation=cv2.INTER_LINEAR)
         # the camera: report a movement beyond the tolerance, and registration coming back
         moved_px = self._pose_change(motion.matrix)
         if self._camera_lost or moved_px > self.camera_tolerance_px:
