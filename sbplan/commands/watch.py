@@ -7,7 +7,7 @@ import json
 import sys
 
 from ._stage_options import add_stage_arguments, stage_choices
-from .plan import _xy
+from .plan import _xy, comma_pair
 
 HELP = "watch a video, image folder, camera or stream URL; print events as JSON lines"
 DESCRIPTION = (
@@ -20,14 +20,6 @@ DESCRIPTION = (
     "130 Ctrl-C, 143 SIGTERM. Events: docs/live.md.")
 
 
-def _pair(text: str) -> tuple[float, float]:
-    try:
-        a, b = (float(v) for v in text.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected FIRST,LARGEST seconds, got {text!r}") from None
-    return a, b
-
-
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("source", help="video file, folder of images, camera index (0) or rtsp:// / http:// URL")
     parser.add_argument("-c", "--calibration", required=True, help="calibration file from 'sbplan calibrate'")
@@ -36,7 +28,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="frames (3) or seconds (0.3s) a cell must be seen changed, or both (3,0.3s) (default 3)")
     parser.add_argument("--stall-timeout", type=float, default=5.0, metavar="S",
                         help="seconds without a frame before 'stalled' and reopening (default 5)")
-    parser.add_argument("--backoff", type=_pair, default=(0.5, 8.0), metavar="FIRST,MAX",
+    parser.add_argument("--backoff", type=comma_pair("FIRST,LARGEST seconds"), default=(0.5, 8.0), metavar="FIRST,MAX",
                         help="seconds between attempts to reopen a failed source, doubling (default 0.5,8)")
     parser.add_argument("--max-reopen", type=int, default=None, metavar="N",
                         help="give up (exit 3) after N failed opens in a row (default: never)")
