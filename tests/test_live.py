@@ -319,6 +319,8 @@ def test_frames_of_another_size_end_the_watch_with_an_error(stream):
     events = run(watcher)
     assert events[-1]["reason"] == "error" and watcher.exit_code == 1
     assert "120x100" in events[-1]["error"]
+    with pytest.raises(InputError, match="run already"):
+        next(watcher.events())
 
 
 def test_undecodable_python_frames_are_skipped_and_counted(stream):

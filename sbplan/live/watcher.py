@@ -273,7 +273,10 @@ class Watcher:
         return self.exit_code
 
     def events(self) -> Iterator[dict]:
-        """Run the pipeline, yielding events as they happen; the last is ``ended``."""
+        """Run the pipeline, yielding events as they happen; the last is ``ended``. A watcher runs
+        once: make another to watch again."""
+        if self._seq:
+            raise InputError("events: this watcher has run already; make a new Watcher to watch again")
         reader = self.reader
         reason = None
         yield self._event("started", source={"name": self.source.name, "kind": self.source.kind,
