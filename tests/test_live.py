@@ -455,3 +455,30 @@ def test_watch_command_writes_events_and_exits_as_documented(stream, tmp_path):
     rest, err = proc.communicate(timeout=60)
     last = json.loads(rest.splitlines()[-1])
     assert proc.returncode == 130 and last["type"] == "ended" and last["reason"] == "interrupted", err
+
+
+def test_a_stream_url_is_read_through_ffmpeg_and_a_dead_one_is_given_up(stream):
+    """An HTTP URL on this machine (loopback only): the AVI served by a local server."""
+    import functools
+    import http.server
+    import socket
+
+    handler = functools.partial(http.server.SimpleHTTPRequestHandler, directory=str(stream["avi"].parent))
+    handler.log_message = lambda *a: None
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    try:
+        url = f"http://127.0.0.1:{server.server_address[1]}/{stream['avi'].name}"
+        watcher = Watcher(url, stream["cal"], hysteresis=H, latest=False, max_frames=8, stall_timeout=5.0)
+        events = run(watcher)
+    finally:
+        server.shutdown()
+        server.server_close()
+    assert events[0]["source"]["kind"] == "url" and events[0]["source"]["live"]
+    assert events[-1]["reason"] == "limit" and events[-1]["stats"]["frames_processed"] == 8
+    with socket.socket() as s:  # a port nobody listens on
+        s.bind(("127.0.0.1", 0))
+        dead = f"http://127.0.0.1:{s.getsockname()[1]}/none.avi"
+    watcher = Watcher(dead, stream["cal"], backoff=(0.01, 0.02), max_reopen=2, stall_timeout=1.0)
+    events = run(watcher)
+    assert events[-1]["reason"] == "source-lost" and watcher.exit_code == 3

@@ -57,7 +57,7 @@ def run(args: argparse.Namespace) -> int:
     from ..errors import InputError
     from ..live import Watcher, open_source, paced
 
-    source = open_source(args.source, fps=args.fps)
+    source = open_source(args.source, fps=args.fps, timeout=args.stall_timeout)
     if args.realtime is not None:
         if source.live:
             raise InputError("--realtime: only for a file or a folder (a camera or URL is live already)")

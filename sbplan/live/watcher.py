@@ -167,7 +167,7 @@ class Watcher:
         for name, p in (("start", self.start), ("goal", self.goal)):
             if p is not None and not (self.bounds[0] <= p[0] <= self.bounds[2] and self.bounds[1] <= p[1] <= self.bounds[3]):
                 raise InputError(f"{name}: ({p[0]:g}, {p[1]:g}) lies outside the floor {self.bounds} (metres)")
-        self.source: Source = open_source(source, fps=fps)
+        self.source: Source = open_source(source, fps=fps, timeout=stall_timeout)
         self.detector = Detector(cal, **stages)
         self.hysteresis = hysteresis
         self.stall_timeout = float(stall_timeout)
