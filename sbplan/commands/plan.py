@@ -13,12 +13,18 @@ DESCRIPTION = (
     "(< 128) are obstacles.")
 
 
-def _xy(text: str) -> tuple[float, float]:
-    try:
-        x, y = (float(v) for v in text.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected X,Y, got {text!r}") from None
-    return x, y
+def comma_pair(label: str):
+    """An argparse type: two numbers separated by a comma; ``label`` names them in the error."""
+    def parse(text: str) -> tuple[float, float]:
+        try:
+            a, b = (float(v) for v in text.split(","))
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {label}, got {text!r}") from None
+        return a, b
+    return parse
+
+
+_xy = comma_pair("X,Y")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -125,6 +125,18 @@ def _expose(refl: np.ndarray, effects: Effects, floor: FloorSpec, cam: Camera, r
         illum = shade if illum is None else illum * shade
         draws["shadow_offset_px"] = [dx, dy]
         draws["shadow_blur_px"] = sigma
+    if effects.shade is not None:
+        darkness, blur, ring = effects.shade
+        ring = np.asarray(ring)
+        win = window(ring, w, h, pad=int(math.ceil(3 * blur)) + 2)
+        if win is not None and darkness > 0:
+            x0, y0, ww, hh = win
+            mask = np.zeros((h, w), np.float32)
+            mask[y0:y0 + hh, x0:x0 + ww] = coverage([[ring]], x0, y0, ww, hh)
+            if blur > 0:
+                mask = cv2.GaussianBlur(mask, (0, 0), blur)
+            shade = 1.0 - darkness * mask
+            illum = shade if illum is None else illum * shade
     img = refl * illum if illum is not None else refl.copy()
     if effects.gain != 1.0:
         img *= effects.gain
@@ -191,7 +203,8 @@ def render_reference(floor: FloorSpec, *, seed: int = 0, condition: str = "clean
     return img
 
 
-def render_scene(floor: FloorSpec, scene: SceneSpec | None = None, *, seed: int = 1) -> tuple[np.ndarray, GroundTruth]:
+def render_scene(floor: FloorSpec, scene: SceneSpec | None = None, *, seed: int = 1, noise_seed: int | None = None,
+                 texture_seeds: list[int] | None = None) -> tuple[np.ndarray, GroundTruth]:
     """A floor with obstacles under the scene's condition, and its ground truth.
 
     Parameters
@@ -202,6 +215,12 @@ def render_scene(floor: FloorSpec, scene: SceneSpec | None = None, *, seed: int 
     seed : int
         Seeds obstacles, textures, lighting draws and sensor noise (independent streams: the same
         seed under another condition gives the same obstacles).
+    noise_seed : int, optional
+        Seeds the sensor noise instead of ``seed``: frames of a stream keep the seed (the same
+        lighting) and draw new noise.
+    texture_seeds : list of int, optional
+        One per obstacle of ``scene.obstacles``: each obstacle's texture drawn from its own seed,
+        so that it looks the same whatever else stands on the floor (frames of a stream).
 
     Returns
     -------
@@ -213,11 +232,15 @@ def render_scene(floor: FloorSpec, scene: SceneSpec | None = None, *, seed: int 
     scene = SceneSpec() if scene is None else scene
     if not isinstance(scene, SceneSpec):
         raise SceneError(f"scene: expected a SceneSpec, got {type(scene).__name__}")
+    if texture_seeds is not None and (scene.obstacles is None or len(texture_seeds) != len(scene.obstacles)):
+        raise SceneError("texture_seeds: give one per obstacle of scene.obstacles")
     effects = scene.resolved_effects()
     cam = _camera(floor, effects)
     # spawned streams do not depend on how many are spawned: the first four are what they were
     # before motion and wear had streams of their own
     r_obs, r_tex, r_light, r_noise, r_motion, r_wear = _rngs(seed, 6)
+    if noise_seed is not None:
+        r_noise = _rngs(noise_seed, 1, 0x015E)[0]
     polys, kinds = _place_obstacles(floor, scene, r_obs)
     refl0, footprints = _floor(floor)
     refl = refl0.copy()
@@ -226,7 +249,9 @@ def render_scene(floor: FloorSpec, scene: SceneSpec | None = None, *, seed: int 
     motion = _motion(floor, effects, seed, r_motion)
     alpha_sum = np.zeros_like(refl)  # the obstacles' coverage, added up
     textures = []
-    for poly, kind in zip(polys, kinds):
+    for i, (poly, kind) in enumerate(zip(polys, kinds)):
+        if texture_seeds is not None:
+            r_tex = _rngs(int(texture_seeds[i]), 1, 0x7E7)[0]
         name = scene.textures[int(r_tex.integers(len(scene.textures)))]
         textures.append(name)
         win = window(poly, floor.width, floor.height)

@@ -16,6 +16,7 @@ from .screens.calibration import CalibrationScreen
 from .screens.detection import DetectionScreen
 from .screens.help import HelpScreen
 from .screens.route import RouteScreen
+from .screens.watch import WatchScreen
 from .session import Session
 
 #: (title, help, screen mode, screen action) for the command palette
@@ -61,6 +62,7 @@ class SbplanApp(App):
         Binding("1", "switch_mode('calibration')", "Calibration"),
         Binding("2", "switch_mode('detection')", "Detection"),
         Binding("3", "switch_mode('route')", "Route"),
+        Binding("w", "watch", "Watch", show=False),
         Binding("f1,question_mark", "help", "Help"),
         Binding("q", "quit", "Quit"),
     ]
@@ -82,6 +84,11 @@ class SbplanApp(App):
             self.notify(f"{type(exc).__name__}: {exc}", title="sbplan: internal error", severity="error", timeout=15)
 
     # -- actions ---------------------------------------------------------------------------------
+    def action_watch(self) -> None:
+        """Watch a stream live (screens/watch.py)."""
+        if not isinstance(self.screen, WatchScreen):
+            self.push_screen(WatchScreen())
+
     def action_help(self) -> None:
         if not isinstance(self.screen, HelpScreen):
             self.push_screen(HelpScreen())
@@ -99,5 +106,6 @@ class SbplanApp(App):
                             ("route", "Route screen")):
             yield SystemCommand(title, f"switch to the {mode} screen", partial(self.switch_mode, mode))
         yield SystemCommand("Help", "keys and what each screen does", self.action_help)
+        yield SystemCommand("Watch a stream", "video, image folder, camera or URL, live", self.action_watch)
         for title, help_text, action_mode, action in ACTIONS:
             yield SystemCommand(title, help_text, partial(self.run_on, action_mode, action))
