@@ -16,7 +16,8 @@ from typing import Any
 import cv2
 import numpy as np
 
-from ... import registry
+from ... import limits, registry
+from ...contracts import distances_between
 from ...errors import CalibrationError, InputError
 from ...imageio import as_gray, load_image
 from ...workspace import Workspace, load_workspace
@@ -24,7 +25,7 @@ from ..grid import Grid, fit_grid
 from ..outline_checks import (edge_contrast, edge_probes, inner_deviations, inner_tolerance, outline_deviation,
                               reference_samples, signed_distance_map)
 from ..registration import centre_window, grey_centres, thumbnail
-from .file import Calibration
+from .file import SYMBOL_WINDOW, Calibration
 from .shapes import Shapes, extract_shapes
 from .threshold import match_threshold
 
@@ -117,6 +118,9 @@ def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str 
     """
     gray = as_gray(load_image(reference) if isinstance(reference, (str, os.PathLike)) else reference,
                    name="reference")
+    # calibration's memory grows with the pixels (about 60 bytes each): refuse before, not during
+    limits.check("image_pixels", gray.size, f"reference: {gray.shape[1]} x {gray.shape[0]} pixels",
+                 "give a smaller image")
     if workspace is not None and not isinstance(workspace, Workspace):
         workspace = load_workspace(workspace)
     if cell_size is not None:
@@ -141,13 +145,13 @@ def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str 
     fit = getattr(chosen["binarizer"], "with_symbol_size", None)
     if fit is not None:
         size = float(np.sqrt(np.median(shapes.areas[members])))
-        refit = fit(size * 1.6)
+        refit = fit(size * SYMBOL_WINDOW)
         if refit != chosen["binarizer"]:
             chosen["binarizer"] = refit
             shapes = extract_shapes(gray, binarizer=refit, points_range=points_range, **kw)
             members = _symbol_members(shapes, chosen["matcher"], ref=given)
     reference_descriptor = np.median(shapes.descriptors[members], axis=0)
-    dist = chosen["matcher"].distance_matrix(shapes.descriptors, reference_descriptor[None, :])[:, 0]
+    dist = distances_between(chosen["matcher"], shapes.descriptors, reference_descriptor[None, :])[:, 0]
     grid = fit_grid(shapes.centres[members])
     # What a symbol looks like in later images is not what it looks like in this one: measure the
     # symbols again in degraded copies of the reference (defocus, dimmer light, sensor noise).
@@ -250,7 +254,7 @@ def _degraded_symbols(gray: np.ndarray, grid: Grid, descriptor: np.ndarray, cell
         ok &= np.abs(np.log(ratio)) < np.log(1.3)
         if not ok.any():  # this degradation erased every symbol: it says nothing about them
             continue
-        d = matcher.distance_matrix(shapes.descriptors[ok], descriptor[None, :])[:, 0]
+        d = distances_between(matcher, shapes.descriptors[ok], descriptor[None, :])[:, 0]
         # one shape per cell: the best match (a cell may also hold the odd noise blob)
         flat = cells[ok, 0] * grid.cols + cells[ok, 1]
         order = np.lexsort((d, flat))
@@ -275,7 +279,7 @@ def _symbol_members(shapes: Shapes, matcher, *, ref: np.ndarray | None) -> np.nd
     if n == 0:
         raise CalibrationError("no symbols found in the reference image (no dark shapes of symbol size)")
     if ref is not None:
-        d = matcher.distance_matrix(shapes.descriptors, ref[None, :])[:, 0]
+        d = distances_between(matcher, shapes.descriptors, ref[None, :])[:, 0]
         near = d < getattr(matcher, "default_threshold", 0.5)
         if not near.any():
             raise CalibrationError("no symbols found in the reference image: no contour matches the given symbol")
@@ -292,7 +296,7 @@ def _symbol_members(shapes: Shapes, matcher, *, ref: np.ndarray | None) -> np.nd
 
 def _dominant_repeated_shape(shapes: Shapes, matcher) -> np.ndarray:
     """The largest group of contours with the same shape and the same size."""
-    d = matcher.distance_matrix(shapes.descriptors, shapes.descriptors)
+    d = distances_between(matcher, shapes.descriptors, shapes.descriptors)
     ratio = shapes.areas[:, None] / shapes.areas[None, :]
     same_size = np.abs(np.log(ratio)) < np.log(1.35)
     tight = 0.25 * getattr(matcher, "default_threshold", 0.5)
@@ -301,7 +305,7 @@ def _dominant_repeated_shape(shapes: Shapes, matcher) -> np.ndarray:
     members = np.flatnonzero(alike[seed])
     # widen once around the group's median so the seed's own noise does not decide membership
     median = np.median(shapes.descriptors[members], axis=0)
-    dm = matcher.distance_matrix(shapes.descriptors, median[None, :])[:, 0]
+    dm = distances_between(matcher, shapes.descriptors, median[None, :])[:, 0]
     spread = max(float(np.max(dm[members])), 1e-6)
     area = np.median(shapes.areas[members])
     return np.flatnonzero((dm <= 2.0 * spread) & (np.abs(np.log(shapes.areas / area)) < np.log(1.35)))
