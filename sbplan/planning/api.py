@@ -17,6 +17,8 @@ import shapely
 from shapely.geometry import LineString, Point, Polygon
 from shapely.ops import nearest_points, unary_union
 
+from .. import limits
+from ..contracts import call_stage, describe_value
 from ..errors import (GoalInObstacleError, InputError, NoRouteError, OutOfBoundsError, PlanningError,
                       StartInObstacleError)
 from .geometry import as_polygons, enlarge
@@ -73,6 +75,7 @@ class PlanningMap:
         r = _nonneg(robot_radius, "robot_radius")
         m = _nonneg(margin, "margin")
         self.obstacles = as_polygons(obstacles)
+        _check_size(self.obstacles)
         self.robot_radius, self.margin = r, m
         if bounds is None:
             pts = [np.asarray(p.bounds).reshape(2, 2) for p in self.obstacles] + [np.asarray(p)[None] for p in _extra_points]
@@ -90,6 +93,7 @@ class PlanningMap:
             raise InputError(f"bounds: expected finite (xmin, ymin, xmax, ymax) with xmin < xmax, ymin < ymax, got {bounds!r}")
         self.bounds = b
         self.scale = max(b[2] - b[0], b[3] - b[1])
+        _check_extent(self.obstacles, b)
         self.tolerance = TOL * self.scale
         self.clearance = r + m + self.tolerance
         self.enlarged = enlarge(self.obstacles, self.clearance)
@@ -195,12 +199,47 @@ class PlanningMap:
     def add_obstacles(self, obstacles: Iterable) -> list[Polygon]:
         """Add real obstacles in place (incremental cache update); return their enlargements."""
         polys = as_polygons(obstacles, name="new_obstacles")
+        _check_size(self.obstacles + polys)
+        _check_extent(polys, self.bounds)
         big = enlarge(polys, self.clearance)
         self.obstacles.extend(polys)
         self.enlarged.extend(big)
         self.vmap.add_obstacles(big)
         self._real_tree = shapely.STRtree(self.obstacles)
         return big
+
+
+def _check_size(polygons: list[Polygon]) -> None:
+    """The obstacle_vertices limit (sbplan.limits): the visibility cache grows with its square."""
+    n = int(shapely.get_num_coordinates(polygons).sum()) if polygons else 0
+    limits.check("obstacle_vertices", n, f"obstacles with {n:,} vertices",
+                 "simplify the obstacles (or clean a noisy occupancy image)")
+
+
+#: Obstacles may reach this many workspace sizes from its centre: farther, the rounding of their
+#: coordinates (2.2e-16 of them) nears the map's tolerance (1e-6 of its size).
+MAX_REACH = 1e9
+
+
+def _check_extent(polygons: list[Polygon], bounds: tuple) -> None:
+    if not polygons:
+        return
+    size = max(bounds[2] - bounds[0], bounds[3] - bounds[1])
+    cx, cy = (bounds[0] + bounds[2]) / 2, (bounds[1] + bounds[3]) / 2
+    ext = shapely.bounds(polygons)
+    reach = float(np.max(np.abs(ext - [cx, cy, cx, cy])))
+    if not reach <= MAX_REACH * size:
+        raise InputError(f"obstacles: reach {reach:.3g} from the workspace's centre, more than {MAX_REACH:g} times "
+                         f"its size {size:.3g}: beyond double precision for this map; clip them to the workspace")
+
+
+def _route_problem(v: Any) -> str | None:
+    """The planner's contract: a Route with finite waypoints (a wrong route is never 'exact')."""
+    if not isinstance(v, Route):
+        return f"{describe_value(v)}, expected a Route"
+    if not (np.isfinite(v.waypoints).all() and math.isfinite(v.length)) or len(v.waypoints) < 1:
+        return "a route with non-finite or no waypoints"
+    return None
 
 
 def _nonneg(v: Any, name: str) -> float:
@@ -312,9 +351,9 @@ def plan(obstacles: Any, start: Any, goal: Any, *, robot_radius: float, planner:
 
     Parameters
     ----------
-    obstacles : iterable of shapely Polygon / (M, 2) arrays ``(x, y)``, or a PlanningMap
+    obstacles : iterable of shapely Polygon / (M, 2) arrays ``(x, y)``, a PlanningMap or an ObstacleSet
         Real obstacles; a PlanningMap (or repeated calls with the same obstacles) reuses the
-        visibility cache.
+        visibility cache; an ObstacleSet (``load_obstacles``) gives its bounds too.
     start, goal : (x, y)
     robot_radius, margin : float, >= 0
     planner : str or Planner stage
@@ -329,16 +368,25 @@ def plan(obstacles: Any, start: Any, goal: Any, *, robot_radius: float, planner:
     Raises
     ------
     OutOfBoundsError, StartInObstacleError, GoalInObstacleError, NoRouteError, InputError
+        As their names say; InputError also for coordinates beyond the planner's precision.
+    LimitError
+        More obstacle vertices than the ``obstacle_vertices`` limit (:mod:`sbplan.limits`).
+    StageError
+        The planner stage raised or returned something other than a finite Route.
     """
     from .. import plugins
+    from .loaders import ObstacleSet
 
     _nonneg(robot_radius, "robot_radius")
     _nonneg(margin, "margin")
     tl = _nonneg(time_limit, "time_limit")
     s, g = _point(start, "start"), _point(goal, "goal")
+    if isinstance(obstacles, ObstacleSet):  # what load_obstacles gives: its polygons, and its bounds
+        bounds = obstacles.bounds if bounds is None else bounds
+        obstacles = obstacles.polygons
     stage = plugins.planner(planner)
     pm = _map_for(obstacles, s, g, robot_radius, margin, bounds)
-    return stage.solve(Problem(pm, s, g), time_limit=tl)
+    return call_stage(stage, "solve", Problem(pm, s, g), time_limit=tl, returns=_route_problem)
 
 
 def replan(route: Route, position: Any, new_obstacles: Any, *, time_limit: float = 1.0) -> Route:

@@ -18,6 +18,9 @@ from ..errors import InputError
 #: corners). A limit of 4 bevels only very sharp spikes; the result always contains the round
 #: buffer, so routes around it keep at least the requested clearance.
 MITRE_LIMIT = 4.0
+#: Largest coordinate (map units) an obstacle may have: squares of coordinates stay finite and a
+#: map's tolerance (1e-6 of its size) stays above double precision's rounding.
+MAX_COORDINATE = 1e12
 
 
 def as_polygons(obstacles: Iterable, *, name: str = "obstacles") -> list[Polygon]:
@@ -29,6 +32,8 @@ def as_polygons(obstacles: Iterable, *, name: str = "obstacles") -> list[Polygon
         Each an obstacle outline ``(x, y)``; multipolygons are split into their parts.
     """
     out: list[Polygon] = []
+    if isinstance(obstacles, (str, bytes)) or not hasattr(obstacles, "__iter__"):
+        raise InputError(f"{name}: expected a list of polygons or (M, 2) point arrays, got {type(obstacles).__name__}")
     for i, ob in enumerate(obstacles):
         if isinstance(ob, MultiPolygon):
             parts = list(ob.geoms)
@@ -48,6 +53,10 @@ def as_polygons(obstacles: Iterable, *, name: str = "obstacles") -> list[Polygon
             coords = np.asarray(p.exterior.coords)
             if not np.isfinite(coords).all():
                 raise InputError(f"{name}[{i}]: coordinates must be finite")
+            # beyond this the planner's products of coordinates overflow or lose the tolerance
+            if np.abs(coords).max() > MAX_COORDINATE or not np.isfinite(p.area):
+                raise InputError(f"{name}[{i}]: coordinates reach {np.abs(coords).max():.3g}, beyond the "
+                                 f"{MAX_COORDINATE:g} the planner's arithmetic holds; clip obstacles to the workspace")
             if not p.is_valid:
                 p = shapely.make_valid(p)
                 parts2 = [g for g in getattr(p, "geoms", [p]) if isinstance(g, Polygon)]
