@@ -43,8 +43,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from ..files import check_outputs
     from ..imageio import write_image
-    from ..planning import load_obstacles, plan
-    from ..planning.api import PlanningMap
+    from ..planning import PlanningMap, load_obstacles, plan
     from ..planning.ompl_planners import quiet
 
     check_outputs({"--plot": args.plot}, {"--obstacles": args.obstacles}, images=("--plot",))
@@ -52,9 +51,8 @@ def run(args: argparse.Namespace) -> int:
     obs = load_obstacles(args.obstacles, resolution=args.resolution, use=args.use,
                          image_anywhere=args.nav2_image_anywhere)
     pm = PlanningMap(obs.polygons, robot_radius=args.radius, margin=args.margin, bounds=obs.bounds,
-                     _extra_points=(args.start, args.goal))
-    route = plan(pm, args.start, args.goal, robot_radius=args.radius, margin=args.margin,
-                 planner=args.planner, time_limit=args.time_limit)
+                     include=(args.start, args.goal))
+    route = plan(pm, args.start, args.goal, planner=args.planner, time_limit=args.time_limit)
     if args.plot:
         from ..planning.plot import draw_route
 

@@ -1,11 +1,12 @@
-"""Polygon preparation for the planners: validation and enlargement.
+"""Input preparation for the planners: point and polygon validation, enlargement.
 
 All points are world coordinates ``(x, y)`` (metres, or pixels with a scale), y up.
 """
 
 from __future__ import annotations
 
-from typing import Iterable, Sequence
+import math
+from typing import Any, Iterable, Sequence
 
 import numpy as np
 import shapely
@@ -21,6 +22,39 @@ MITRE_LIMIT = 4.0
 #: Largest coordinate (map units) an obstacle may have: squares of coordinates stay finite and a
 #: map's tolerance (1e-6 of its size) stays above double precision's rounding.
 MAX_COORDINATE = 1e12
+
+_F64 = np.dtype(float)
+
+
+def as_point(p: Any, name: str) -> tuple[np.ndarray, float, float]:
+    """Validate a point; return it as a float array of shape (2,) ``(x, y)`` and as two floats.
+
+    Raises InputError naming ``name`` unless ``p`` is a finite point ``(x, y)``.
+    """
+    if type(p) is np.ndarray and p.dtype is _F64 and p.shape == (2,):
+        a = p  # the common case, without asarray's and isfinite's call overhead
+    else:
+        try:
+            a = np.asarray(p, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            raise InputError(f"{name}: expected a point (x, y), got {p!r}") from None
+        if a.shape != (2,):
+            raise InputError(f"{name}: expected a finite point (x, y), got {p!r}")
+    x, y = a.tolist()
+    if not (math.isfinite(x) and math.isfinite(y)):
+        raise InputError(f"{name}: expected a finite point (x, y), got {p!r}")
+    return a, x, y
+
+
+def nonneg(v: Any, name: str) -> float:
+    """Validate a finite number >= 0 (a radius, a margin, a time limit); InputError naming ``name``."""
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        raise InputError(f"{name}: expected a number, got {v!r}") from None
+    if not math.isfinite(f) or f < 0:
+        raise InputError(f"{name}: must be a finite number >= 0, got {v!r}")
+    return f
 
 
 def as_polygons(obstacles: Iterable, *, name: str = "obstacles") -> list[Polygon]:
@@ -77,3 +111,31 @@ def enlarge(polygons: Sequence[Polygon], distance: float) -> list[Polygon]:
             if isinstance(g, Polygon) and not g.is_empty and g.area > 0:
                 out.append(orient(g.simplify(0.0), 1.0))
     return out
+
+
+def check_size(polygons: list[Polygon]) -> None:
+    """The obstacle_vertices limit (:mod:`sbplan.limits`): the visibility cache grows with the
+    square of the obstacles' vertices. Raises LimitError."""
+    from .. import limits
+
+    n = int(shapely.get_num_coordinates(polygons).sum()) if polygons else 0
+    limits.check("obstacle_vertices", n, f"obstacles with {n:,} vertices",
+                 "simplify the obstacles (or clean a noisy occupancy image)")
+
+
+#: Obstacles may reach this many workspace sizes from its centre: farther, the rounding of their
+#: coordinates (2.2e-16 of them) nears the map's tolerance (1e-6 of its size).
+MAX_REACH = 1e9
+
+
+def check_extent(polygons: list[Polygon], bounds: Sequence[float]) -> None:
+    """Refuse obstacles reaching farther from the workspace than double precision holds for it
+    (InputError)."""
+    if not polygons:
+        return
+    size = max(bounds[2] - bounds[0], bounds[3] - bounds[1])
+    cx, cy = (bounds[0] + bounds[2]) / 2, (bounds[1] + bounds[3]) / 2
+    reach = float(np.max(np.abs(shapely.bounds(polygons) - [cx, cy, cx, cy])))
+    if not reach <= MAX_REACH * size:
+        raise InputError(f"obstacles: reach {reach:.3g} from the workspace's centre, more than {MAX_REACH:g} times "
+                         f"its size {size:.3g}: beyond double precision for this map; clip them to the workspace")

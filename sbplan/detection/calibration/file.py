@@ -98,6 +98,7 @@ class Calibration:
     edge_contrast: np.ndarray | None = None
     registration_centres_px: np.ndarray | None = None
     reference_thumbnail: np.ndarray | None = None
+    work_scale: int = 1
     workspace: Workspace = field(default_factory=Workspace)
     stats: dict[str, Any] = field(default_factory=dict)
 
@@ -119,7 +120,7 @@ class Calibration:
             stage = registry.registry().create(kind, spec["name"], **spec.get("options", {}))
         fit = getattr(stage, "with_symbol_size", None)
         if fit is not None and not isinstance(override, Stage):
-            stage = fit(math.sqrt(self.symbol_area_px) * SYMBOL_WINDOW)
+            stage = fit(math.sqrt(self.symbol_area_px) * SYMBOL_WINDOW / self.work_scale)
         return stage
 
     def matching_for(self, matcher: Any) -> tuple[np.ndarray, float]:
@@ -188,6 +189,7 @@ class Calibration:
             "format": FORMAT,
             "image_shape": list(self.image_shape),
             "stages": self.stages,
+            **({} if self.work_scale == 1 else {"work_scale": self.work_scale}),
             "grid": self.grid.to_json(),
             "symbol": {
                 "descriptor": self.descriptor.tolist(),
@@ -273,6 +275,7 @@ class Calibration:
         return cls(
             image_shape=(shape[0], shape[1]),
             stages=stages,
+            work_scale=_work_scale(data.get("work_scale", 1), source),
             grid=grid,
             symbol_polygons=polygons,
             other_polygons=f.polygons(data, "other_polygons"),
@@ -412,6 +415,12 @@ class _Fields:
 def _short(v: Any) -> str:
     text = json.dumps(v, default=str) if not isinstance(v, float) else repr(v)
     return text if len(text) <= 40 else text[:37] + "..."
+
+
+def _work_scale(value: Any, source: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= 64:
+        raise CalibrationFileError(f"{source}: work_scale: must be a whole number from 1 to 64, got {value!r}")
+    return value
 
 
 def _png_base64(image: np.ndarray) -> str:

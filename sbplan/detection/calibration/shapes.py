@@ -9,6 +9,7 @@ import numpy as np
 
 from ...contracts import array_of, call_stage, describe_value, descriptors_of, stage_failure
 from ...polygons import centroids, length_filter, signed_areas
+from ..working import WorkScale
 
 
 def _is_list(v) -> str | None:
@@ -35,11 +36,18 @@ class Shapes:
 
 
 def extract_shapes(gray: np.ndarray, *, binarizer, extractor, approximator, matcher,
-                   points_range: tuple[int, int]) -> Shapes:
+                   points_range: tuple[int, int], work: WorkScale | None = None) -> Shapes:
     """Binarize, extract, length-filter, approximate and describe the outer contours of an image.
 
+    With ``work`` (:class:`~sbplan.detection.working.WorkScale`) the image is reduced first and
+    the polygons mapped back to its pixels (areas and centres with them); ``points`` and
+    ``points_range`` count the reduced image's boundary pixels.
+
     Every stage is called through :func:`sbplan.contracts.call_stage`: a stage that raises or
-    returns what its contract does not allow is a StageError naming it."""
+    returns what its contract does not allow is a StageError naming it.
+    """
+    if work is not None:
+        gray = work.reduce(gray)
     binary = call_stage(binarizer, "binarize", gray, returns=array_of(gray.shape, kinds="bui"))
     found = call_stage(extractor, "extract", binary, returns=_is_list)
     try:
@@ -50,6 +58,8 @@ def extract_shapes(gray: np.ndarray, *, binarizer, extractor, approximator, matc
     approximated = [call_stage(approximator, "approximate", c, returns=_is_points) for c in kept]
     keep = [i for i, p in enumerate(approximated) if len(p) >= 3]
     polygons = [np.asarray(approximated[i], np.float64) for i in keep]
+    if work is not None and not work.identity:
+        polygons = [work.to_frame(p) for p in polygons]
     n_points = [len(kept[i].points) for i in keep]
     areas = np.abs(signed_areas(polygons)) if polygons else np.zeros(0)
     nonzero = np.flatnonzero(areas > 0)
