@@ -188,9 +188,9 @@ def load_image(path: str | os.PathLike) -> np.ndarray:
         image = None
     if image is None:
         raise ImageError(f"{p}: not an image OpenCV can read")
-    if image.shape[0] * image.shape[1] > top:
-        limits.check("image_pixels", image.shape[0] * image.shape[1], f"{p}: {image.shape[1]} x {image.shape[0]} pixels",
-                     "give a smaller image")
+    h, w = image.shape[:2]
+    if h * w > top:  # a format whose header was not read: checked after decoding
+        limits.check("image_pixels", h * w, f"{p}: {w} x {h} pixels", "give a smaller image")
     return as_gray(image, name=str(p))
 
 

@@ -13,7 +13,6 @@ import math
 import struct
 import zlib
 from dataclasses import dataclass, replace
-from pathlib import Path
 
 import cv2
 import numpy as np
@@ -28,19 +27,16 @@ from sbplan.errors import (EXIT_CODES, CalibrationFileError, CameraMotionError, 
                            LimitError, MapFormatError, NoFloorError, StageError)
 from sbplan.imageio import load_image, write_image
 from sbplan.planning import load_obstacles, plan
-from sbplan.synth import FloorSpec, SceneSpec, render_reference, render_scene
+from sbplan.synth import FloorSpec, SceneSpec, render_scene
 
-FLOOR = FloorSpec(width=480, height=360, cols=6, rows=4)
+from _small_floor import FLOOR, calibrated_floor
 
 
 @pytest.fixture(scope="module")
 def site(tmp_path_factory):
     """A calibrated floor on disk: reference, a scene with obstacles, calibration, result, nav2 map."""
     folder = tmp_path_factory.mktemp("site")
-    reference = render_reference(FLOOR, seed=0)
-    write_image(folder / "reference.png", reference)
-    cal = calibrate(reference, cell_size=0.5)
-    cal.save(folder / "cal.json")
+    cal = calibrated_floor(folder)
     image, truth = render_scene(FLOOR, SceneSpec(n_obstacles=2), seed=3)
     write_image(folder / "scene.png", image)
     detection = Detector(cal)(image)
@@ -565,6 +561,9 @@ def test_bad_input_lists_for_calibrate_detect_and_plan(site, tmp_path, capsys):
             ["--obstacles", result, "--start", "0.1,0.1", "--goal", "1,1", "--radius", "0", "--planner", "x"],
             ["--obstacles", result, "--start", "0.1,0.1", "--goal", "1,1", "--radius", "0", "--use", "x"],
             ["--obstacles", small, "--start", "0,0", "--goal", "1,1", "--radius", "0", "--resolution", "-2"],
+            ["--obstacles", result, "--start", "0,0", "--goal", "1,1", "--radius", "0", "--resolution", "nan"],
+            ["--obstacles", result, "--start", "0.1,0.1", "--goal", "1,1", "--radius", "1e308"],
+            ["--obstacles", result, "--start", "0.1,0.1", "--goal", "1,1", "--radius", "0", "--margin", "1e308"],
             ["--obstacles", tmp_path / "none.geojson", "--start", "0,0", "--goal", "1,1", "--radius", "0"],
         ],
     }

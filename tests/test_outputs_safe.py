@@ -8,7 +8,6 @@ kill -9 and concurrent writers, and every output error is one line.
 
 from __future__ import annotations
 
-import json
 import os
 import pickle
 import random
@@ -19,30 +18,26 @@ import textwrap
 import time
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from sbplan.cli import main
 from sbplan.detection import Detector, exports
-from sbplan.detection.calibration import calibrate
 from sbplan.errors import OutputError
 from sbplan.files import check_outputs, clean_stale_temporaries, write_atomic, write_file_set
 from sbplan.imageio import write_image, write_json
 from sbplan.planning import load_obstacles
-from sbplan.synth import FloorSpec, SceneSpec, render_reference, render_scene
+from sbplan.synth import SceneSpec, render_scene
+
+from _small_floor import FLOOR, calibrated_floor
 
 ROOT = Path(__file__).resolve().parents[1]
-FLOOR = FloorSpec(width=480, height=360, cols=6, rows=4)
 
 
 @pytest.fixture(scope="module")
 def floor(tmp_path_factory):
     """A calibrated floor on disk and two detections with different obstacles."""
     folder = tmp_path_factory.mktemp("floor")
-    reference = render_reference(FLOOR, seed=0)
-    write_image(folder / "reference.png", reference)
-    cal = calibrate(reference, cell_size=0.5)
-    cal.save(folder / "cal.json")
+    cal = calibrated_floor(folder)
     scenes = []
     for seed in (3, 4):
         image, _ = render_scene(FLOOR, SceneSpec(n_obstacles=2), seed=seed)

@@ -124,7 +124,8 @@ def nav2_resolution(resolution: float | None, pitch_m: tuple[float, float]) -> f
     try:
         res = float(resolution)
     except (TypeError, ValueError):
-        raise InputError(f"nav2 resolution (--nav2-resolution): expected metres per pixel, got {resolution!r}") from None
+        raise InputError(f"nav2 resolution (--nav2-resolution): expected metres per pixel, "
+                         f"got {resolution!r}") from None
     if not (math.isfinite(res) and res > 0):
         raise InputError(f"nav2 resolution (--nav2-resolution): must be a positive number of metres per pixel, "
                          f"got {resolution!r}")
@@ -149,8 +150,8 @@ def nav2_map(detection: Detection, *, resolution: float | None = None) -> tuple[
     xmin, ymin, xmax, ymax = cal.world_bounds()
     res = nav2_resolution(resolution, cal.workspace.pitch_m)
     fw, fh = np.ceil((xmax - xmin) / res - 1e-9), np.ceil((ymax - ymin) / res - 1e-9)
-    limits.check("map_pixels", float(fw) * float(fh), f"a nav2 map of {fw:.0f} x {fh:.0f} pixels at {res:g} m per pixel",
-                 "give a coarser --nav2-resolution")
+    limits.check("map_pixels", float(fw) * float(fh),
+                 f"a nav2 map of {fw:.0f} x {fh:.0f} pixels at {res:g} m per pixel", "give a coarser --nav2-resolution")
     width, height = int(fw), int(fh)
     image = np.full((height, width), 254, np.uint8)
     for r, c in detection.occupied_cells:

@@ -59,6 +59,10 @@ def load_obstacles(path: Any, *, resolution: float | None = None, use: str = "ma
     LimitError
         An occupancy image with more runs of occupied pixels than the ``obstacle_vertices`` limit.
     """
+    if resolution is not None and not (isinstance(resolution, (int, float)) and math.isfinite(resolution)
+                                       and resolution > 0):
+        raise InputError(f"resolution (--resolution): must be a positive number of metres per pixel, "
+                         f"got {resolution!r}")
     p = Path(path)
     if not p.exists():
         raise MapFormatError(f"{p}: no such file")

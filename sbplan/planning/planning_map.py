@@ -15,7 +15,7 @@ from shapely.ops import nearest_points, unary_union
 
 from ..errors import GoalInObstacleError, InputError, OutOfBoundsError, StartInObstacleError
 from .aux_corner import solve_aux_corner
-from .geometry import as_polygons, check_extent, check_size, enlarge, nonneg
+from .geometry import MAX_COORDINATE, as_polygons, check_extent, check_size, enlarge, nonneg
 from .vismap import VisibilityMap
 
 if TYPE_CHECKING:
@@ -57,6 +57,9 @@ class PlanningMap:
                  bounds: Sequence[float] | None = None, include: Sequence[Any] = ()):
         r = nonneg(robot_radius, "robot_radius")
         m = nonneg(margin, "margin")
+        if r + m > MAX_COORDINATE:  # enlarging by it would overflow like a coordinate would
+            raise InputError(f"robot_radius + margin: {r + m:g} is beyond the {MAX_COORDINATE:g} the planner's "
+                             "arithmetic holds")
         self.obstacles = as_polygons(obstacles)
         check_size(self.obstacles)
         self.robot_radius, self.margin = r, m
