@@ -172,10 +172,15 @@ def nav2_map(detection: Detection, *, resolution: float | None = None) -> tuple[
 def nav2_files(detection: Detection, *, resolution: float | None = None) -> dict[str, bytes | str]:
     """The nav2 map's files, ``{"map.yaml": text, "map.pgm": bytes}`` (see :func:`nav2_map`)."""
     image, meta = nav2_map(detection, resolution=resolution)
+    return {"map.yaml": nav2_yaml(meta), meta["image"]: encode_image(meta["image"], image)}
+
+
+def nav2_yaml(meta: dict) -> str:
+    """The text of ``map.yaml`` for :func:`nav2_map`'s fields."""
     lines = [f"image: {meta['image']}", f"mode: {meta['mode']}", f"resolution: {meta['resolution']:.6g}",
              "origin: [{:.6g}, {:.6g}, {:.6g}]".format(*meta["origin"]), f"negate: {meta['negate']}",
              f"occupied_thresh: {meta['occupied_thresh']}", f"free_thresh: {meta['free_thresh']}"]
-    return {"map.yaml": "\n".join(lines) + "\n", meta["image"]: encode_image(meta["image"], image)}
+    return "\n".join(lines) + "\n"
 
 
 def write_nav2(folder: str | os.PathLike, detection: Detection, *, resolution: float | None = None) -> Path:
