@@ -7,7 +7,8 @@ Exit codes (one scheme for every command; docs/operator-guide.md lists them):
 
 ====  ==========================================================================================
 0     success
-1     an internal error (a bug): the traceback is printed
+1     an internal error (a bug): the traceback is printed (an SbplanError of no family below also
+      exits 1; sbplan raises none)
 2     the command line: an unknown option, a value sbplan cannot use (:class:`InputError`)
 3     an input file is missing, unreadable or malformed: image, calibration, obstacle file,
       workspace (:class:`ImageError`, :class:`MapFormatError`, :class:`CalibrationFileError`)

@@ -40,13 +40,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..errors import InputError, SbplanError
+    from ..errors import InputError, PluginError
 
     try:
         import fastapi  # noqa: F401
         import uvicorn  # noqa: F401
     except ImportError as exc:
-        raise SbplanError(f"sbplan serve needs the serve extra: pip install 'sbplan[serve]' (missing: {exc.name})") from None
+        raise PluginError(f"sbplan serve needs the serve extra: pip install 'sbplan[serve]' (missing: {exc.name})") from None
     from ..detection import load_calibration
     from ..service import Limits, Service
     from ..service.app import create_app

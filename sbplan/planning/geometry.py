@@ -94,11 +94,22 @@ def as_polygons(obstacles: Iterable, *, name: str = "obstacles") -> list[Polygon
             if not p.is_valid:
                 p = shapely.make_valid(p)
                 parts2 = [g for g in getattr(p, "geoms", [p]) if isinstance(g, Polygon)]
-                out.extend(g for g in parts2 if g.area > 0)
+                out.extend(g for g in parts2 if _has_area(g))
                 continue
-            if p.area > 0:
+            if _has_area(p):
                 out.append(p)
     return out
+
+
+#: A polygon whose area is below this fraction of its bounding box's square has no area the
+#: planner can use: GEOS's buffer of a triangle 1e-200 thick misses points within the radius.
+DEGENERATE_AREA = 1e-100
+
+
+def _has_area(p: Polygon) -> bool:
+    """An area the planner's arithmetic can see (zero-area and underflowing slivers are dropped)."""
+    x0, y0, x1, y1 = p.bounds
+    return p.area > DEGENERATE_AREA * max(x1 - x0, y1 - y0) ** 2
 
 
 def enlarge(polygons: Sequence[Polygon], distance: float) -> list[Polygon]:
