@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import os
 
-from ..errors import InputError, SbplanError
+from ..errors import InputError, PluginError
 
 HELP = "serve one workspace over HTTP and WebSocket: obstacles, nav2 map, routes pushed to robots"
 DESCRIPTION = (
@@ -48,7 +48,7 @@ def run(args: argparse.Namespace) -> int:
         import fastapi  # noqa: F401
         import uvicorn  # noqa: F401
     except ImportError as exc:
-        raise SbplanError(f"sbplan serve needs the serve extra: pip install 'sbplan[serve]' (missing: {exc.name})") from None
+        raise PluginError(f"sbplan serve needs the serve extra: pip install 'sbplan[serve]' (missing: {exc.name})") from None
     from ..detection import load_calibration
     from ..service import Limits, Service
     from ..service.app import create_app

@@ -23,6 +23,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     if args.map is not None and not Path(args.map).is_dir():
+        if Path(args.map).exists():
+            raise MapFormatError(f"{args.map}: is a file; 'sbplan tui' takes a map folder (reference.png, "
+                                 "scene-*.png, workspace.toml)")
         raise MapFormatError(f"{args.map}: no such map folder")
     if not sys.stdout.isatty():
         raise InputError("tui: standard output is not a terminal; run 'sbplan tui' in a terminal")

@@ -50,7 +50,7 @@ import numpy as np
 
 from .. import registry
 from ..contracts import Binarizer, ContourApproximator, ContourExtractor, DescriptorMatcher
-from ..errors import InputError, SbplanError
+from ..errors import InputError
 from .noise import NOISE_FAMILIES, noise_set, parse_families
 from .raster import coverage, place, symbol_rings
 
@@ -443,7 +443,7 @@ def rank_symbols(candidates: Sequence[str] | Mapping[str, Any] | None = None, *,
         rings = rings_of[name]
         v = describe_views(rings, **views)
         if len(v) == 0:
-            raise SbplanError(f"symbol {name!r}: no rendering of it yields a contour with these stages")
+            raise InputError(f"symbol {name!r}: no rendering of it yields a contour with these stages")
         desc = np.median(v, axis=0)
         descriptors.append(desc)
         spread.append(float(st["matcher"].distance_matrix(v, desc[None, :])[:, 0].max()))

@@ -16,9 +16,9 @@ from typing import Any, Unpack, cast
 import cv2
 import numpy as np
 
-from ... import registry
+from ... import limits, registry
 from ...contracts import (Binarizer, ContourApproximator, ContourExtractor, DescriptorMatcher, OccupancyMapper,
-                          StageChoices)
+                          StageChoices, distances_between)
 from ...errors import CalibrationError, InputError
 from ...imageio import ImageInput, as_gray, load_image
 from ...workspace import Workspace, load_workspace
@@ -26,7 +26,7 @@ from ..grid import Grid, fit_grid
 from ..outline_checks import (EDGE_DEPTH_PX, edge_contrast, edge_probes, inner_deviations, inner_tolerance,
                               outline_deviation, reference_samples, signed_distance_map)
 from ..registration import CameraMotion, centre_window, grey_centres, thumbnail
-from .file import Calibration
+from .file import SYMBOL_WINDOW, Calibration
 from ..working import WorkScale, work_factor
 from .shapes import Shapes, extract_shapes
 from .threshold import match_threshold
@@ -123,6 +123,9 @@ def calibrate(reference: ImageInput, *, symbol: ImageInput | None = None,
     """
     gray = as_gray(load_image(reference) if isinstance(reference, (str, os.PathLike)) else reference,
                    name="reference")
+    # calibration's memory grows with the pixels (about 60 bytes each): refuse before, not during
+    limits.check("image_pixels", gray.size, f"reference: {gray.shape[1]} x {gray.shape[0]} pixels",
+                 "give a smaller image")
     if workspace is not None and not isinstance(workspace, Workspace):
         workspace = load_workspace(workspace)
     if cell_size is not None:
@@ -154,14 +157,14 @@ def calibrate(reference: ImageInput, *, symbol: ImageInput | None = None,
     if not work.identity:
         points_range = (12, max(16, sum(work.work_shape) // 2))
     fit = getattr(chosen["binarizer"], "with_symbol_size", None)
-    refit = fit(size * 1.6 / work.factor) if fit is not None else chosen["binarizer"]
+    refit = fit(size * SYMBOL_WINDOW / work.factor) if fit is not None else chosen["binarizer"]
     if refit != chosen["binarizer"] or not work.identity:
         chosen["binarizer"] = refit
         shapes = extract_shapes(gray, binarizer=refit, points_range=points_range, work=work_arg,
                                 extractor=extractor_stage, approximator=approximator_stage, matcher=matcher_stage)
         members = _symbol_members(shapes, chosen["matcher"], ref=given)
     reference_descriptor = np.median(shapes.descriptors[members], axis=0)
-    dist = matcher_stage.distance_matrix(shapes.descriptors, reference_descriptor[None, :])[:, 0]
+    dist = distances_between(matcher_stage, shapes.descriptors, reference_descriptor[None, :])[:, 0]
     grid = fit_grid(shapes.centres[members])
     # What a symbol looks like in later images is not what it looks like in this one: measure the
     # symbols again in degraded copies of the reference (defocus, dimmer light, sensor noise).
@@ -272,7 +275,7 @@ def _degraded_symbols(gray: np.ndarray, grid: Grid, descriptor: np.ndarray, cell
         ok &= np.abs(np.log(ratio)) < np.log(1.3)
         if not ok.any():  # this degradation erased every symbol: it says nothing about them
             continue
-        d = matcher.distance_matrix(shapes.descriptors[ok], descriptor[None, :])[:, 0]
+        d = distances_between(matcher, shapes.descriptors[ok], descriptor[None, :])[:, 0]
         # one shape per cell: the best match (a cell may also hold the odd noise blob)
         flat = cells[ok, 0] * grid.cols + cells[ok, 1]
         order = np.lexsort((d, flat))
@@ -297,7 +300,7 @@ def _symbol_members(shapes: Shapes, matcher, *, ref: np.ndarray | None) -> np.nd
     if n == 0:
         raise CalibrationError("no symbols found in the reference image (no dark shapes of symbol size)")
     if ref is not None:
-        d = matcher.distance_matrix(shapes.descriptors, ref[None, :])[:, 0]
+        d = distances_between(matcher, shapes.descriptors, ref[None, :])[:, 0]
         near = d < getattr(matcher, "default_threshold", 0.5)
         if not near.any():
             raise CalibrationError("no symbols found in the reference image: no contour matches the given symbol")
@@ -314,7 +317,7 @@ def _symbol_members(shapes: Shapes, matcher, *, ref: np.ndarray | None) -> np.nd
 
 def _dominant_repeated_shape(shapes: Shapes, matcher) -> np.ndarray:
     """The largest group of contours with the same shape and the same size."""
-    d = matcher.distance_matrix(shapes.descriptors, shapes.descriptors)
+    d = distances_between(matcher, shapes.descriptors, shapes.descriptors)
     ratio = shapes.areas[:, None] / shapes.areas[None, :]
     same_size = np.abs(np.log(ratio)) < np.log(1.35)
     tight = 0.25 * getattr(matcher, "default_threshold", 0.5)
@@ -323,7 +326,7 @@ def _dominant_repeated_shape(shapes: Shapes, matcher) -> np.ndarray:
     members = np.flatnonzero(alike[seed])
     # widen once around the group's median so the seed's own noise does not decide membership
     median = np.median(shapes.descriptors[members], axis=0)
-    dm = matcher.distance_matrix(shapes.descriptors, median[None, :])[:, 0]
+    dm = distances_between(matcher, shapes.descriptors, median[None, :])[:, 0]
     spread = max(float(np.max(dm[members])), 1e-6)
     area = np.median(shapes.areas[members])
     return np.flatnonzero((dm <= 2.0 * spread) & (np.abs(np.log(shapes.areas / area)) < np.log(1.35)))
