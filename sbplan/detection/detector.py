@@ -21,7 +21,7 @@ from ..polygons import PolygonBatch, centroids, resample_complex, signed_areas
 from .bands import RowBands
 from .calibration.file import Calibration, load_calibration
 from .calibration.shapes import length_filter_steps
-from .obstacles import find_obstacles
+from .obstacles import obstacles_from_outlines
 from .outline_checks import (EDGE_SAMPLES, EDGE_SCRATCH_POINTS, INNER_MARGIN_PX, SAMPLES, edge_factors, edge_kept,
                              edge_probes, hidden_piece, intact_edges, reference_samples, samples_deviation,
                              scratches_repaired, signed_distance_map)
@@ -61,8 +61,8 @@ class Detector:
     """
 
     def __init__(self, calibration: Calibration, *, binarizer: Any = None, extractor: Any = None,
-                 approximator: Any = None, matcher: Any = None, mapper: Any = None, row_bands: bool = True,
-                 register: bool = True):
+                 approximator: Any = None, matcher: Any = None, mapper: Any = None, footprint: Any = None,
+                 row_bands: bool = True, register: bool = True):
         self.calibration = cal = calibration
         self.binarizer = cal.stage("binarizer", binarizer)
         self.extractor = cal.stage("extractor", extractor)
@@ -73,6 +73,13 @@ class Detector:
         self.approximator = cal.stage("approximator", approximator)
         self.matcher = cal.stage("matcher", matcher)
         self.mapper = cal.stage("mapper", mapper)
+        self.footprint = cal.stage("footprint", footprint)
+        # the footprint's per-calibration work; a stage that cannot use this calibration (an old
+        # file) hands over to its fallback (pixels -> cells)
+        self._footprint_data = self.footprint.prepare(cal)
+        if self._footprint_data is None and getattr(self.footprint, "fallback", None):
+            self.footprint = cal.stage("footprint", self.footprint.fallback)
+            self._footprint_data = self.footprint.prepare(cal)
         self.descriptor, self.threshold = cal.matching_for(self.matcher)
         areas = np.abs(signed_areas(cal.symbol_polygons))
         self.cell_area = areas.reshape(cal.grid.rows, cal.grid.cols)
@@ -119,7 +126,7 @@ class Detector:
             self._cell_centres = centroids(cal.symbol_polygons)
         self.stage_names = {"binarizer": self.binarizer.name, "extractor": self.extractor.name,
                             "approximator": self.approximator.name, "matcher": self.matcher.name,
-                            "mapper": self.mapper.name}
+                            "mapper": self.mapper.name, "footprint": self.footprint.name}
 
     def _bands_for(self, matrix: np.ndarray) -> RowBands | None:
         """The row bands around the symbols as a camera moved by ``matrix`` (calibration -> frame)
@@ -362,17 +369,24 @@ class Detector:
         return np.concatenate([lo, hi], axis=1)
 
     def __call__(self, image: Any) -> Detection:
-        """The whole detection: :meth:`find_cells`, then the occupancy image and the obstacles."""
+        """The whole detection: :meth:`find_cells`, then the occupancy image, the obstacles'
+        footprints (the footprint stage) and the obstacles."""
         cal = self.calibration
-        cells = self.find_cells(image)
+        t0 = time.perf_counter()
+        gray = as_gray(load_image(image) if isinstance(image, (str, os.PathLike)) else image, name="image")
+        cells = self.find_cells(gray)
         timings = {k: v for k, v in cells.timings_ms.items() if k != "total"}
         t = time.perf_counter()
         occupancy = self.mapper.occupancy_image(cal.grid, cells.occupied, cells.image_shape)
         now = time.perf_counter()
         timings["map"] = (now - t) * 1e3
-        obstacles = find_obstacles(occupancy, cells.occupied, cal.grid, to_world=cal.pixels_to_world)
-        timings["obstacles"] = (time.perf_counter() - now) * 1e3
-        timings["total"] = cells.timings_ms["total"] + timings["map"] + timings["obstacles"]
+        outlines = self.footprint.outlines(gray, cells.occupied, occupancy, cal, cells.camera, self._footprint_data)
+        t = time.perf_counter()
+        timings["footprint"] = (t - now) * 1e3
+        obstacles = obstacles_from_outlines(outlines, cells.occupied, cal.grid, to_world=cal.pixels_to_world,
+                                            to_pixels=cal.world_to_pixels)
+        timings["obstacles"] = (time.perf_counter() - t) * 1e3
+        timings["total"] = (time.perf_counter() - t0) * 1e3
         return Detection(cal, cells.occupied, cells.symbols_found, cells.matched_centres_px, occupancy,
                          obstacles, timings, self.stage_names, cells.candidates_px, cells.camera)
 
@@ -404,7 +418,7 @@ def detect(image: Any, calibration: Calibration | str | os.PathLike, **stages: A
         The current image, from the camera of the calibration.
     calibration : Calibration or path of a calibration JSON
     **stages : str or Stage
-        ``binarizer``, ``extractor``, ``approximator``, ``matcher``, ``mapper`` overrides.
+        ``binarizer``, ``extractor``, ``approximator``, ``matcher``, ``mapper``, ``footprint`` overrides.
 
     Raises
     ------

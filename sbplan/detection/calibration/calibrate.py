@@ -35,6 +35,7 @@ DEFAULT_STAGES = {
     "approximator": "douglas-peucker",
     "matcher": "fourier",
     "mapper": "cells",
+    "footprint": "pixels",
 }
 
 
@@ -93,7 +94,8 @@ def update_calibration(calibration: Calibration, frame: Any, **stages: Any) -> t
 
 def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str | os.PathLike | None = None,
               cell_size: float | None = None, binarizer: Any = None, extractor: Any = None,
-              approximator: Any = None, matcher: Any = None, mapper: Any = None) -> Calibration:
+              approximator: Any = None, matcher: Any = None, mapper: Any = None,
+              footprint: Any = None) -> Calibration:
     """Calibrate on an image of the empty floor.
 
     Parameters
@@ -107,7 +109,7 @@ def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str 
         Grid pitch in metres, origin, robot radius, default route.
     cell_size : float, optional
         Grid pitch in metres (both directions) when no workspace is given; default 1.0.
-    binarizer, extractor, approximator, matcher, mapper : str or Stage, optional
+    binarizer, extractor, approximator, matcher, mapper, footprint : str or Stage, optional
         Stage names (or instances); defaults in :data:`DEFAULT_STAGES`.
 
     Raises
@@ -128,7 +130,7 @@ def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str 
     reg = registry.registry()
     chosen = {kind: reg.create(kind, given if given is not None else DEFAULT_STAGES[kind])
               for kind, given in (("binarizer", binarizer), ("extractor", extractor), ("approximator", approximator),
-                                  ("matcher", matcher), ("mapper", mapper))}
+                                  ("matcher", matcher), ("mapper", mapper), ("footprint", footprint))}
     h, w = gray.shape
     points_range = (12, max(16, (h + w) // 2))
     kw = dict(extractor=chosen["extractor"], approximator=chosen["approximator"], matcher=chosen["matcher"])

@@ -34,8 +34,9 @@ class Calibration:
     ----------
     image_shape : (H, W)
     stages : dict
-        kind -> ``{"name": ..., "options": {...}}`` for binarizer, extractor, approximator, matcher
-        and mapper.
+        kind -> ``{"name": ..., "options": {...}}`` for binarizer, extractor, approximator, matcher,
+        mapper and footprint (files written before the footprint stage existed lack it: the
+        default is used).
     grid : Grid
     symbol_polygons : list of ndarray (K, 2)
         The approximated outline of every cell's symbol in the reference, row-major.
@@ -69,6 +70,10 @@ class Calibration:
         Every cell's symbol's grey-level centre in the reference
         (:func:`sbplan.detection.registration.grey_centres`), what frames' symbols are compared with
         to register them to sub-pixel accuracy. None in older files: the grid's centres are used.
+    reference_thumbnail : ndarray (H // 4, W // 4), uint8, or None
+        The reference averaged over 4 x 4 blocks: registration tells movements a pitch apart by the
+        floor's texture in it, and the ``pixels`` footprint compares frames with it
+        (:mod:`sbplan.detection.footprints`). None in older files (no texture check; cell footprints).
     workspace : Workspace
     """
 
@@ -99,6 +104,11 @@ class Calibration:
         """The stage instance of ``kind``: ``override`` (a name or an instance) or the calibrated one."""
         if override is not None:
             return registry.registry().create(kind, override)
+        if kind not in self.stages:
+            # a file written before the kind existed (the footprint): the default stage
+            from .calibrate import DEFAULT_STAGES
+
+            return registry.registry().create(kind, DEFAULT_STAGES[kind])
         spec = self.stages[kind]
         return registry.registry().create(kind, spec["name"], **spec.get("options", {}))
 
@@ -132,6 +142,12 @@ class Calibration:
         """Image pixels ``(x, y)`` (N, 2) -> world metres ``(x, y)`` (N, 2), through the grid."""
         lattice = self.grid.px_to_lattice(xy)
         return self.workspace.lattice_to_world(lattice, self.grid.rows)
+
+    def world_to_pixels(self, xy: np.ndarray) -> np.ndarray:
+        """World metres ``(x, y)`` (N, 2) -> image pixels ``(x, y)`` (N, 2): the inverse of
+        :meth:`pixels_to_world` (what the planner avoids, drawn on the image)."""
+        lattice = self.workspace.world_to_lattice(xy, self.grid.rows)
+        return self.grid.lattice_to_px(lattice)
 
     def moved(self, matrix: np.ndarray) -> "Calibration":
         """This calibration for a camera moved by ``matrix`` (3x3, old pixels -> new pixels): every
