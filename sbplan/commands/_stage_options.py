@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-STAGE_KINDS = ("binarizer", "extractor", "approximator", "matcher", "mapper")
+STAGE_KINDS = ("binarizer", "extractor", "approximator", "matcher", "mapper", "footprint")
 
 
 def add_stage_arguments(parser: argparse.ArgumentParser) -> None:
@@ -21,3 +21,12 @@ def stage_choices(args: argparse.Namespace) -> dict[str, str]:
     for kind, name in chosen.items():
         registry.registry().info(kind, name)  # raises UnknownStageError listing the installed names
     return chosen
+
+
+def add_obstacle_model_argument(parser: argparse.ArgumentParser, *, what: str) -> None:
+    """``--obstacle-model mar|parts|outline``: the same option, the same default, in every command."""
+    from ..detection.obstacles import DEFAULT_OBSTACLE_MODEL, OBSTACLE_MODELS
+
+    parser.add_argument("--obstacle-model", choices=OBSTACLE_MODELS, default=DEFAULT_OBSTACLE_MODEL,
+                        help=f"what stands for each obstacle {what}: its minimum-area rectangle, rectangles "
+                             f"of its parts, or its outline (default: %(default)s)")

@@ -15,6 +15,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("-o", "--output", default=None, metavar="DIR",
                         help="folder for the calibration, result, pictures and maps (default: out/<map name>)")
     parser.add_argument("--planner", default="aux-corner", help="planner stage (default: %(default)s)")
+    from ._stage_options import add_obstacle_model_argument
+
+    add_obstacle_model_argument(parser, what="(planner, overlay, GeoJSON, nav2)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -42,21 +45,23 @@ def run(args: argparse.Namespace) -> int:
     for line in summary_lines(detection):
         print("  " + line)
     write_json(out / "result.json", detection.to_json())
-    exports.write_overlay(out / "overlay.png", image, detection)
+    model = args.obstacle_model
+    exports.write_overlay(out / "overlay.png", image, detection, model)
     exports.write_occupancy(out / "occupancy.png", detection)
-    exports.write_geojson(out / "obstacles.geojson", detection)
-    exports.write_nav2(out / "nav2", detection)
+    exports.write_geojson(out / "obstacles.geojson", detection, model)
+    exports.write_nav2(out / "nav2", detection, model=model)
     ws = cal.workspace
     if ws.start_m and ws.goal_m:
         from ..planning import plan
         from ..planning.ompl_planners import quiet
 
         quiet(bool(getattr(args, "verbose", False)))  # OMPL's log only with -v
-        obstacles = [ob.mar_m for ob in detection.obstacles]
-        route = plan(obstacles, ws.start_m, ws.goal_m, robot_radius=ws.robot_radius_m, planner=args.planner,
-                     bounds=cal.world_bounds())
+        # the detection's obstacles under the obstacle model, on its floor
+        route = plan(detection, ws.start_m, ws.goal_m, robot_radius=ws.robot_radius_m, planner=args.planner,
+                     obstacle_model=model)
         pts = " -> ".join(f"({x:.2f}, {y:.2f})" for x, y in route.waypoints)
-        print(f"route ({route.planner}, {route.status}): {route.length:.3f} m in {route.time * 1e3:.2f} ms")
+        print(f"route ({route.planner}, {route.status}, obstacles as {model}): {route.length:.3f} m "
+              f"in {route.time * 1e3:.2f} ms")
         print(f"  {pts}")
         write_json(out / "route.json", route.to_dict())
     print(f"wrote {out}/: calibration.json, result.json, overlay.png, occupancy.png, obstacles.geojson, nav2/")

@@ -1,6 +1,11 @@
 """Files a user can open: overlay picture, occupancy image, GeoJSON, and a ROS 2 nav2 map.
 
 All writers are atomic. World coordinates are metres, x right along the columns, y up (nav2's frame).
+
+What you see is what is avoided: the overlay, the GeoJSON and the nav2 map show the polygons the
+planner gets under the chosen obstacle model (:mod:`sbplan.detection.obstacles`), in the planner's
+geometry (metres, through the grid), and the overlay adds their clearance as the planner enlarges
+them by the robot's radius, clipped to the workspace: :func:`planner_view`.
 """
 
 from __future__ import annotations
@@ -11,20 +16,81 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+import shapely
 
 from ..imageio import write_atomic, write_image
 from ..polygons import signed_area
+from .obstacles import DEFAULT_OBSTACLE_MODEL, check_obstacle_model
 from .result import Detection
 
 _RED, _GREEN, _YELLOW, _CYAN, _WHITE, _BLACK = (40, 40, 230), (60, 200, 60), (0, 220, 255), (230, 200, 0), (255, 255, 255), (0, 0, 0)
+_ORANGE = (0, 140, 255)
 
 
-def overlay_image(image: np.ndarray, detection: Detection) -> np.ndarray:
-    """The scene with occupied cells shaded red, found symbols marked green, MARs in yellow and
-    obstacle numbers (as the paper's figure 12). Returns a BGR image (H, W, 3) uint8.
+def planner_view(detection: Detection, model: str = DEFAULT_OBSTACLE_MODEL, *, robot_radius: float | None = None,
+                 margin: float = 0.0) -> tuple[list, list]:
+    """What the planner gets from ``detection`` under ``model``: the obstacles' polygons and their
+    clearance zones, shapely polygons in world metres.
+
+    The polygons are :meth:`Detection.planner_obstacles` as the planner takes them
+    (:class:`sbplan.planning.PlanningMap`'s ``obstacles``); the clearance zones are the planner's
+    own enlargement of them by ``robot_radius + margin`` (``PlanningMap.enlarged``), clipped to the
+    workspace bounds (the floor the grid covers), where the robot's centre stays.
+
+    Parameters
+    ----------
+    detection : Detection
+    model : "mar" | "parts" | "outline"
+    robot_radius : float, optional
+        Default: the calibration's workspace robot radius.
+    margin : float
+        Extra safety distance, as :func:`sbplan.plan` takes it.
+
+    Returns
+    -------
+    (obstacles, clearance) : two lists of shapely Polygon
+    """
+    from ..planning import PlanningMap
+
+    check_obstacle_model(model)
+    cal = detection.calibration
+    radius = cal.workspace.robot_radius_m if robot_radius is None else float(robot_radius)
+    polygons = detection.planner_obstacles(model)
+    if not polygons:
+        return [], []
+    bounds = cal.world_bounds()
+    pmap = PlanningMap(polygons, robot_radius=radius, margin=margin, bounds=bounds)
+    floor = shapely.box(*bounds)
+    clearance = []
+    for zone in pmap.enlarged:
+        clipped = zone.intersection(floor)
+        clearance += [g for g in getattr(clipped, "geoms", [clipped]) if g.geom_type == "Polygon" and g.area > 0]
+    return list(pmap.obstacles), clearance
+
+
+def overlay_polygons(detection: Detection, model: str = DEFAULT_OBSTACLE_MODEL, **planner: float) -> tuple[list, list]:
+    """:func:`planner_view` drawn in the frame: the obstacles' and the clearance zones' outer rings
+    as ``(K, 2)`` pixel arrays ``(x, y)`` of the frame the detection was made on (through the grid
+    and the camera's movement). What :func:`overlay_image` draws."""
+    obstacles, clearance = planner_view(detection, model, **planner)
+    cal, cam = detection.calibration, detection.camera
+
+    def ring(g) -> np.ndarray:
+        px = cal.world_to_pixels(np.asarray(g.exterior.coords)[:-1])
+        return cam.to_frame(px) if cam.moved else px
+
+    return [ring(g) for g in obstacles], [ring(g) for g in clearance]
+
+
+def overlay_image(image: np.ndarray, detection: Detection, model: str = DEFAULT_OBSTACLE_MODEL, **planner: float) -> np.ndarray:
+    """The scene with occupied cells shaded red, found symbols marked green, each obstacle's
+    footprint outline (thin red), what the planner avoids under ``model`` (yellow) with its
+    clearance (thin orange, :func:`overlay_polygons`), and obstacle numbers (as the paper's
+    figure 12). Returns a BGR image (H, W, 3) uint8.
 
     The detection's pixel coordinates are the calibration's; they are drawn where the camera's
-    movement (``detection.camera``) puts them in this frame."""
+    movement (``detection.camera``) puts them in this frame. ``planner``: ``robot_radius``,
+    ``margin`` as :func:`planner_view` takes them."""
     from ..imageio import as_gray
 
     gray = as_gray(image)
@@ -43,11 +109,19 @@ def overlay_image(image: np.ndarray, detection: Detection) -> np.ndarray:
         cv2.circle(out, (int(round(x)), int(round(y))), 3 * scale, _GREEN, -1, cv2.LINE_AA)
     for x, y in to_frame(detection.candidates_px.reshape(-1, 2)):
         cv2.drawMarker(out, (int(round(x)), int(round(y))), _CYAN, cv2.MARKER_TILTED_CROSS, 8 * scale, scale)
+    has_world = all(ob.outline_m is not None for ob in detection.obstacles)
+    if has_world:
+        avoided, clearance = overlay_polygons(detection, model, **planner)
+    else:  # no world frame: the model's pixel polygons, no clearance
+        avoided, clearance = [to_frame(p) for ob in detection.obstacles for p in ob.polygons_px(model)], []
     for ob in detection.obstacles:
         cv2.polylines(out, [np.rint(to_frame(ob.outline_px) * 16).astype(np.int32)], True, _RED, scale,
                       cv2.LINE_AA, shift=4)
-        cv2.polylines(out, [np.rint(to_frame(ob.mar_px) * 16).astype(np.int32)], True, _YELLOW, 2 * scale,
-                      cv2.LINE_AA, shift=4)
+    for ring in clearance:
+        cv2.polylines(out, [np.rint(ring * 16).astype(np.int32)], True, _ORANGE, scale, cv2.LINE_AA, shift=4)
+    for ring in avoided:
+        cv2.polylines(out, [np.rint(ring * 16).astype(np.int32)], True, _YELLOW, 2 * scale, cv2.LINE_AA, shift=4)
+    for ob in detection.obstacles:
         label = str(ob.id)
         font, fs, th = cv2.FONT_HERSHEY_SIMPLEX, 0.9 * scale, 2 * scale
         (tw, tht), _ = cv2.getTextSize(label, font, fs, th)
@@ -56,7 +130,7 @@ def overlay_image(image: np.ndarray, detection: Detection) -> np.ndarray:
         cv2.putText(out, label, org, font, fs, _BLACK, th + 3 * scale, cv2.LINE_AA)
         cv2.putText(out, label, org, font, fs, _WHITE, th, cv2.LINE_AA)
     text = (f"{detection.symbols_found}/{detection.symbols_expected} symbols, "
-            f"{len(detection.occupied_cells)} occupied cells, {len(detection.obstacles)} obstacles")
+            f"{len(detection.occupied_cells)} occupied cells, {len(detection.obstacles)} obstacles ({model})")
     (tw, th), base = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, 0.55 * scale, scale)
     banner = out[: th + base + 10 * scale, : tw + 16 * scale]
     banner[:] = (banner * 0.35).astype(np.uint8)  # a dark band keeps the text legible on any floor
@@ -64,8 +138,9 @@ def overlay_image(image: np.ndarray, detection: Detection) -> np.ndarray:
     return out
 
 
-def write_overlay(path: str | os.PathLike, image: np.ndarray, detection: Detection) -> Path:
-    return write_image(path, overlay_image(image, detection))
+def write_overlay(path: str | os.PathLike, image: np.ndarray, detection: Detection,
+                  model: str = DEFAULT_OBSTACLE_MODEL, **planner: float) -> Path:
+    return write_image(path, overlay_image(image, detection, model, **planner))
 
 
 def write_occupancy(path: str | os.PathLike, detection: Detection) -> Path:
@@ -73,74 +148,96 @@ def write_occupancy(path: str | os.PathLike, detection: Detection) -> Path:
     return write_image(path, detection.occupancy)
 
 
-def geojson(detection: Detection) -> dict:
+#: GeoJSON ``kind`` of the features that hold each obstacle model's polygons (the footprint's
+#: outline is always written, as ``outline``).
+GEOJSON_KINDS = {"mar": "mar", "parts": "part", "outline": "outline"}
+
+
+def geojson(detection: Detection, model: str = DEFAULT_OBSTACLE_MODEL) -> dict:
     """Obstacles as a GeoJSON FeatureCollection in the local metric frame (metres, y up).
 
-    Each obstacle gives two Polygon features: its outline (``kind: "outline"``) and its MAR
-    (``kind: "mar"``). The foreign member ``sbplan`` records the frame and the floor's bounds.
+    Each obstacle gives its footprint's outline (``kind: "outline"``) and, unless the model is
+    ``outline``, the polygons the planner avoids under ``model``: its MAR (``kind: "mar"``) or its
+    parts (``kind: "part"``, one feature each, numbered by ``part``). The foreign member ``sbplan``
+    records the frame, the floor's bounds and ``obstacle_model``, which tells a reader
+    (:func:`sbplan.planning.load_obstacles`) which features to plan around.
     """
+    check_obstacle_model(model)
     features = []
+
+    def feature(ring, props) -> dict:
+        ring = np.asarray(ring, np.float64)
+        # RFC 7946: exterior rings counter-clockwise in the y-up world frame, which is clockwise
+        # in geometry.signed_area's y-down convention; first point repeated
+        if signed_area(ring) > 0:
+            ring = ring[::-1]
+        coords = np.vstack([ring, ring[:1]]).round(6).tolist()
+        return {"type": "Feature", "geometry": {"type": "Polygon", "coordinates": [coords]}, "properties": props}
+
     for ob in detection.obstacles:
-        for kind, ring in (("outline", ob.outline_m), ("mar", ob.mar_m)):
-            ring = np.asarray(ring, np.float64)
-            # RFC 7946: exterior rings counter-clockwise in the y-up world frame, which is clockwise
-            # in geometry.signed_area's y-down convention; first point repeated
-            if signed_area(ring) > 0:
-                ring = ring[::-1]
-            coords = np.vstack([ring, ring[:1]]).round(6).tolist()
-            features.append({
-                "type": "Feature",
-                "geometry": {"type": "Polygon", "coordinates": [coords]},
-                "properties": {"id": ob.id, "kind": kind, "cells": [list(c) for c in ob.cells]},
-            })
+        cells = [list(c) for c in ob.cells]
+        features.append(feature(ob.outline_m, {"id": ob.id, "kind": "outline", "cells": cells}))
+        if model == "outline":
+            continue
+        for k, ring in enumerate(ob.polygons_m(model)):
+            props = {"id": ob.id, "kind": GEOJSON_KINDS[model], "cells": cells}
+            if model == "parts":
+                props["part"] = k
+            features.append(feature(ring, props))
     return {
         "type": "FeatureCollection",
         "features": features,
         "sbplan": {
             "frame": "local metric frame: metres, x right along the grid's columns, y up toward row 0",
             "bounds_m": [round(v, 6) for v in detection.calibration.world_bounds()],
+            "obstacle_model": model,
         },
     }
 
 
-def write_geojson(path: str | os.PathLike, detection: Detection) -> Path:
-    return write_atomic(path, json.dumps(geojson(detection), indent=1) + "\n")
+def write_geojson(path: str | os.PathLike, detection: Detection, model: str = DEFAULT_OBSTACLE_MODEL) -> Path:
+    return write_atomic(path, json.dumps(geojson(detection, model), indent=1) + "\n")
 
 
-def nav2_map(detection: Detection, *, resolution: float | None = None) -> tuple[np.ndarray, dict]:
+def nav2_map(detection: Detection, *, resolution: float | None = None,
+             model: str = DEFAULT_OBSTACLE_MODEL) -> tuple[np.ndarray, dict]:
     """A ROS 2 nav2 ``map_server`` map of the floor: (image (H, W) uint8, yaml fields).
 
-    Occupied cells are drawn as the exact squares they are on the floor (the grid is regular in the
-    world frame). Pixel 0 = occupied, 254 = free; row 0 of the image is the top (largest y), as
-    map_server expects; ``origin`` is the world pose of the bottom-left pixel's corner.
+    The polygons the planner avoids under ``model`` are drawn in metres (the grid is regular in
+    the world frame); every map pixel a polygon touches is occupied, so the map holds all of them.
+    Pixel 0 = occupied, 254 = free; row 0 of the image is the top (largest y), as map_server
+    expects; ``origin`` is the world pose of the bottom-left pixel's corner.
     """
+    check_obstacle_model(model)
     cal = detection.calibration
     xmin, ymin, xmax, ymax = cal.world_bounds()
     res = resolution or min(cal.workspace.pitch_m) / 10.0
     width, height = int(np.ceil((xmax - xmin) / res - 1e-9)), int(np.ceil((ymax - ymin) / res - 1e-9))
     image = np.full((height, width), 254, np.uint8)
-    for r, c in detection.occupied_cells:
-        lat = np.array([[c - 0.5, r - 0.5], [c + 0.5, r + 0.5]])
-        w = cal.workspace.lattice_to_world(lat, cal.grid.rows)
-        x0, x1 = sorted(w[:, 0])
-        y0, y1 = sorted(w[:, 1])
-        c0, c1 = int(round((x0 - xmin) / res)), int(round((x1 - xmin) / res))
-        # row flip: image row 0 is the top edge y = ymin + height * res
-        r0, r1 = int(round(height - (y1 - ymin) / res)), int(round(height - (y0 - ymin) / res))
-        image[max(r0, 0):min(r1, height), max(c0, 0):min(c1, width)] = 0
+    rings = []
+    for p in detection.planner_obstacles(model):
+        p = np.asarray(p, np.float64)
+        # world -> map pixels whose centres are integers (row 0 at the top edge y = ymin + height * res)
+        q = np.column_stack([(p[:, 0] - xmin) / res - 0.5, height - (p[:, 1] - ymin) / res - 0.5])
+        rings.append(np.rint(q * 16).astype(np.int32))
+    if rings:
+        cv2.fillPoly(image, rings, 0, cv2.LINE_8, shift=4)
+        # ... and the pixels the outlines pass through whose centres lie outside
+        cv2.polylines(image, rings, True, 0, 1, cv2.LINE_8, shift=4)
     meta = {"image": "map.pgm", "mode": "trinary", "resolution": float(res),
             "origin": [float(xmin), float(ymin), 0.0], "negate": 0,
-            "occupied_thresh": 0.65, "free_thresh": 0.25}
+            "occupied_thresh": 0.65, "free_thresh": 0.25, "obstacle_model": model}
     return image, meta
 
 
-def write_nav2(folder: str | os.PathLike, detection: Detection, *, resolution: float | None = None) -> Path:
+def write_nav2(folder: str | os.PathLike, detection: Detection, *, resolution: float | None = None,
+               model: str = DEFAULT_OBSTACLE_MODEL) -> Path:
     """Write ``map.yaml`` and ``map.pgm`` into ``folder``; returns the YAML's path."""
     folder = Path(folder)
-    image, meta = nav2_map(detection, resolution=resolution)
+    image, meta = nav2_map(detection, resolution=resolution, model=model)
     write_image(folder / meta["image"], image)
     lines = [f"image: {meta['image']}", f"mode: {meta['mode']}", f"resolution: {meta['resolution']:.6g}",
              "origin: [{:.6g}, {:.6g}, {:.6g}]".format(*meta["origin"]), f"negate: {meta['negate']}",
-             f"occupied_thresh: {meta['occupied_thresh']}", f"free_thresh: {meta['free_thresh']}"]
+             f"occupied_thresh: {meta['occupied_thresh']}", f"free_thresh: {meta['free_thresh']}",
+             f"# sbplan obstacle model: {meta['obstacle_model']}"]
     return write_atomic(folder / "map.yaml", "\n".join(lines) + "\n")
-

@@ -307,14 +307,20 @@ def _map_for(obstacles: Any, start: np.ndarray, goal: np.ndarray, robot_radius: 
 
 
 def plan(obstacles: Any, start: Any, goal: Any, *, robot_radius: float, planner: Any = "aux-corner",
-         bounds: Sequence[float] | None = None, time_limit: float = 1.0, margin: float = 0.0) -> Route:
+         bounds: Sequence[float] | None = None, time_limit: float = 1.0, margin: float = 0.0,
+         obstacle_model: str | None = None) -> Route:
     """Plan a collision-free route for a disc robot among polygonal obstacles.
 
     Parameters
     ----------
-    obstacles : iterable of shapely Polygon / (M, 2) arrays ``(x, y)``, or a PlanningMap
+    obstacles : iterable of shapely Polygon / (M, 2) arrays ``(x, y)``, a PlanningMap, or a Detection
         Real obstacles; a PlanningMap (or repeated calls with the same obstacles) reuses the
-        visibility cache.
+        visibility cache. A :class:`sbplan.Detection` stands for its obstacles under
+        ``obstacle_model`` (``Detection.planner_obstacles``), on its floor (``bounds`` default to
+        the calibrated grid's).
+    obstacle_model : "mar" | "parts" | "outline", optional
+        For a Detection: what stands for each obstacle (default ``parts``, see
+        :mod:`sbplan.detection.obstacles`).
     start, goal : (x, y)
     robot_radius, margin : float, >= 0
     planner : str or Planner stage
@@ -332,6 +338,15 @@ def plan(obstacles: Any, start: Any, goal: Any, *, robot_radius: float, planner:
     """
     from .. import plugins
 
+    # a Detection: its obstacles under the obstacle model, on its floor (issue 15)
+    if hasattr(obstacles, "planner_obstacles"):
+        from ..detection.obstacles import DEFAULT_OBSTACLE_MODEL
+
+        if bounds is None:
+            bounds = obstacles.calibration.world_bounds()
+        obstacles = obstacles.planner_obstacles(obstacle_model or DEFAULT_OBSTACLE_MODEL)
+    elif obstacle_model is not None:
+        raise InputError("obstacle_model: only a Detection has obstacle models; give its polygons otherwise")
     _nonneg(robot_radius, "robot_radius")
     _nonneg(margin, "margin")
     tl = _nonneg(time_limit, "time_limit")

@@ -18,7 +18,7 @@ import shapely
 import shapely.affinity
 from shapely.geometry import Polygon, box
 
-from ..errors import ImageError, MapFormatError
+from ..errors import ImageError, InputError, MapFormatError
 from ..imageio import as_gray, load_image
 
 
@@ -32,7 +32,8 @@ class ObstacleSet:
     source: str = ""
 
 
-def load_obstacles(path: Any, *, resolution: float | None = None, use: str = "mar") -> ObstacleSet:
+def load_obstacles(path: Any, *, resolution: float | None = None, use: str | None = None,
+                   obstacle_model: str | None = None) -> ObstacleSet:
     """Load obstacles from a file, by its type.
 
     Parameters
@@ -44,9 +45,23 @@ def load_obstacles(path: Any, *, resolution: float | None = None, use: str = "ma
     resolution : float, optional
         Metres per pixel for a plain image (default 1: pixel units). Origin at the image's
         bottom-left corner, y up (nav2's frame).
-    use : "mar" | "outline"
-        Which polygon of a detection to plan around.
+    obstacle_model : "mar" | "parts" | "outline"
+        What of a detection result to plan around (:mod:`sbplan.detection.obstacles`); default
+        ``parts``. A GeoJSON file says which model it was written with (default: its MARs).
+    use : str
+        The old name of ``obstacle_model``.
     """
+    # -- obstacle models (issue 15): one name everywhere; `use` is its old name --
+    from ..detection.obstacles import DEFAULT_OBSTACLE_MODEL, check_obstacle_model
+
+    if use is not None and obstacle_model is not None and use != obstacle_model:
+        raise MapFormatError(f"use: {use!r} contradicts obstacle_model {obstacle_model!r}")
+    model = obstacle_model or use or DEFAULT_OBSTACLE_MODEL
+    try:
+        check_obstacle_model(model)
+    except InputError as exc:
+        raise MapFormatError(str(exc)) from None
+    explicit = (obstacle_model or use) is not None
     p = Path(path)
     if not p.exists():
         raise MapFormatError(f"{p}: no such file")
@@ -59,9 +74,9 @@ def load_obstacles(path: Any, *, resolution: float | None = None, use: str = "ma
         except (UnicodeDecodeError, json.JSONDecodeError) as exc:
             raise MapFormatError(f"{p}: not valid JSON ({exc})") from None
         if isinstance(data, dict) and data.get("type") == "FeatureCollection":
-            return _from_geojson(data, str(p))
+            return _from_geojson(data, str(p), model if explicit else None)
         if isinstance(data, dict) and str(data.get("format", "")).startswith("sbplan.detection"):
-            return _from_detection(data, str(p), use)
+            return _from_detection(data, str(p), model)
         raise MapFormatError(f"{p}: neither a GeoJSON FeatureCollection nor an sbplan detection result")
     if ext in (".yaml", ".yml"):
         return _from_nav2(p)
@@ -99,23 +114,27 @@ def _poly(coords: Any, where: str) -> Polygon:
     return Polygon(a)
 
 
-def _from_detection(data: dict, src: str, use: str) -> ObstacleSet:
-    if use not in ("mar", "outline"):
-        raise MapFormatError(f"use: expected 'mar' or 'outline', got {use!r}")
-    key = "mar_m" if use == "mar" else "outline_m"
+def _from_detection(data: dict, src: str, model: str) -> ObstacleSet:
+    from ..detection.obstacles import json_polygons_m
+
     obs = data.get("obstacles")
     if not isinstance(obs, list):
         raise MapFormatError(f"{src}: 'obstacles' must be a list")
     polys = []
     for i, ob in enumerate(obs):
-        if not isinstance(ob, dict) or key not in ob:
-            raise MapFormatError(f"{src}: obstacles[{i}] has no {key!r}")
-        polys.append(_poly(ob[key], f"{src}: obstacles[{i}].{key}"))
+        try:
+            rings = json_polygons_m(ob, model)
+        except (KeyError, TypeError):
+            key = {"mar": "mar_m", "parts": "parts_m", "outline": "outline_m"}[model]
+            raise MapFormatError(f"{src}: obstacles[{i}] has no {key!r}") from None
+        except (ValueError, InputError) as exc:
+            raise MapFormatError(f"{src}: obstacles[{i}]: {exc}") from None
+        polys += [_poly(r, f"{src}: obstacles[{i}] ({model})") for r in rings]
     ws = data.get("workspace") or {}
     return ObstacleSet(polys, _bounds(ws.get("bounds_m") if isinstance(ws, dict) else None, src), src)
 
 
-def _from_geojson(data: dict, src: str) -> ObstacleSet:
+def _from_geojson(data: dict, src: str, model: str | None = None) -> ObstacleSet:
     feats = data.get("features")
     if not isinstance(feats, list):
         raise MapFormatError(f"{src}: 'features' must be a list")
@@ -138,11 +157,21 @@ def _from_geojson(data: dict, src: str) -> ObstacleSet:
             shell = _poly(rings[0], f"{src}: features[{i}]")
             holes = [_poly(r, f"{src}: features[{i}] hole").exterior.coords for r in rings[1:]]
             items.append((kind, Polygon(shell.exterior.coords, holes)))
-    kinds = {k for k, _ in items if k is not None}
-    polys = [p for k, p in items if k == "mar"] if kinds else [p for _, p in items]
-    if kinds and not polys:
-        polys = [p for _, p in items]
     meta = data.get("sbplan") if isinstance(data.get("sbplan"), dict) else {}
+    # the features of the obstacle model asked for, else of the one the file was written with
+    # (files written before the models: their MARs)
+    from ..detection.exports import GEOJSON_KINDS
+
+    asked = model
+    model = model or meta.get("obstacle_model") or "mar"
+    want = GEOJSON_KINDS.get(model, "mar")
+    kinds = {k for k, _ in items if k is not None}
+    polys = [p for k, p in items if k == want] if kinds else [p for _, p in items]
+    if kinds and not polys:
+        if asked is not None:
+            raise MapFormatError(f"{src}: no {want!r} features for the {asked!r} obstacle model "
+                                 f"(the file holds {', '.join(sorted(kinds))})")
+        polys = [p for _, p in items]
     return ObstacleSet(polys, _bounds(meta.get("bounds_m"), src), src)
 
 
