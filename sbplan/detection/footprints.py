@@ -65,6 +65,9 @@ from .registration import THUMBNAIL_FACTOR, CameraMotion
 #: A run of this many points on each side of an outline point must agree with it (all hidden, or
 #: all visible) for the point to seed a region: single points flip with noise and wear.
 SEED_RUN = 2
+#: A bay of a piece's convex hull is filled when it is at most this share of the piece (and holds
+#: no floor seed): a stretch of an obstacle's edge the floor leaked through leaves a bay.
+BAY_SHARE = 0.15
 #: A piece of a footprint outside its occupied cells stays when this share of its pixels shows a
 #: change from the reference (:func:`_supported`): a level CHANGE_LEVEL (log) off the light around.
 SUPPORT = 0.25
@@ -370,7 +373,7 @@ def pixel_outlines(gray: np.ndarray, occupied: np.ndarray, reference: FootprintR
         region = _supported(region, occ, seeds == 1, frame, ref.reference[win], texture if texture_seed > 0 else None,
                             support)
     if neck > 0:
-        region |= _hulls(region, neck)
+        region = _hulls(region, neck, seeds == 1)
     if margin > 0:
         region = cv2.dilate(region.astype(np.uint8), np.ones((2 * margin + 1, 2 * margin + 1), np.uint8)) > 0
     region &= roi & ref.grid_area[win]
@@ -442,16 +445,30 @@ def _filled(mask: np.ndarray) -> np.ndarray:
     return out > 0
 
 
-def _hulls(mask: np.ndarray, neck: int) -> np.ndarray:
-    """The convex hulls of the pieces of ``mask`` left by an opening with a disc ``neck`` wide:
-    pieces that touch at a corner or by a thin neck get hulls of their own."""
-    disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (neck, neck))
-    opened = cv2.morphologyEx(mask.astype(np.uint8), cv2.MORPH_OPEN, disc)
+def _hulls(mask: np.ndarray, neck: int, floor: np.ndarray) -> np.ndarray:
+    """``mask`` with the bays of its pieces filled: a piece (after an opening with a disc ``neck``
+    wide, which parts pieces touching at a corner or by a thin neck) is set in its convex hull, and
+    each bay between them is filled unless it holds a floor seed (``floor``: a free symbol, a
+    visible stretch of a symbol's edge) or is larger than :data:`BAY_SHARE` of the piece (the notch
+    between two obstacles touching at a corner is floor)."""
+    opened = cv2.morphologyEx(mask.astype(np.uint8), cv2.MORPH_OPEN, _disc(neck))
     contours, _ = cv2.findContours(opened, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
-    out = np.zeros(mask.shape, np.uint8)
+    out = mask.copy()
     for c in contours:
-        cv2.fillConvexPoly(out, cv2.convexHull(c), 1)
-    return out > 0
+        hull = np.zeros(mask.shape, np.uint8)
+        cv2.fillConvexPoly(hull, cv2.convexHull(c), 1)
+        piece = cv2.contourArea(c)
+        bays = (hull > 0) & ~mask
+        if not bays.any():
+            continue
+        n, labels = cv2.connectedComponents(bays.astype(np.uint8), connectivity=4)
+        size = np.bincount(labels.ravel(), minlength=n)
+        seeded = np.zeros(n, bool)
+        seeded[labels[floor & bays]] = True
+        fill = (size <= BAY_SHARE * piece) | ~seeded
+        fill[0] = False
+        out |= fill[labels]
+    return out
 
 
 def _box(c: np.ndarray) -> np.ndarray:

@@ -125,8 +125,9 @@ def _from_detection(data: dict, src: str, model: str) -> ObstacleSet:
         try:
             rings = json_polygons_m(ob, model)
         except (KeyError, TypeError):
-            key = {"mar": "mar_m", "parts": "parts_m", "outline": "outline_m"}[model]
-            raise MapFormatError(f"{src}: obstacles[{i}] has no {key!r}") from None
+            key = {"mar": "'mar_m'", "parts": "'parts_m' (nor 'outline_m' to cut parts from)",
+                   "outline": "'outline_m'"}[model]
+            raise MapFormatError(f"{src}: obstacles[{i}] has no {key}") from None
         except (ValueError, InputError) as exc:
             raise MapFormatError(f"{src}: obstacles[{i}]: {exc}") from None
         polys += [_poly(r, f"{src}: obstacles[{i}] ({model})") for r in rings]
