@@ -204,7 +204,8 @@ def nav2_map(detection: Detection, *, resolution: float | None = None,
     """A ROS 2 nav2 ``map_server`` map of the floor: (image (H, W) uint8, yaml fields).
 
     The polygons the planner avoids under ``model`` are drawn in metres (the grid is regular in
-    the world frame); every map pixel a polygon touches is occupied, so the map holds all of them.
+    the world frame); every map pixel a polygon touches is occupied (and none further than 1.7
+    pixels from one), so the map holds all of them.
     Pixel 0 = occupied, 254 = free; row 0 of the image is the top (largest y), as map_server
     expects; ``origin`` is the world pose of the bottom-left pixel's corner.
     """
@@ -216,14 +217,15 @@ def nav2_map(detection: Detection, *, resolution: float | None = None,
     image = np.full((height, width), 254, np.uint8)
     rings = []
     for p in detection.planner_obstacles(model):
-        p = np.asarray(p, np.float64)
-        # world -> map pixels whose centres are integers (row 0 at the top edge y = ymin + height * res)
-        q = np.column_stack([(p[:, 0] - xmin) / res - 0.5, height - (p[:, 1] - ymin) / res - 0.5])
-        rings.append(np.rint(q * 16).astype(np.int32))
-    if rings:
-        cv2.fillPoly(image, rings, 0, cv2.LINE_8, shift=4)
-        # ... and the pixels the outlines pass through whose centres lie outside
-        cv2.polylines(image, rings, True, 0, 1, cv2.LINE_8, shift=4)
+        # every pixel the polygon touches has its centre within half a pixel's diagonal of it
+        grown = shapely.Polygon(np.asarray(p, np.float64)).buffer(res / np.sqrt(2), join_style="mitre", mitre_limit=2.0)
+        for g in getattr(grown, "geoms", [grown]):
+            q = np.asarray(g.exterior.coords, np.float64)
+            # world -> map pixels whose centres are integers (row 0 at the top edge y = ymin + height * res)
+            q = np.column_stack([(q[:, 0] - xmin) / res - 0.5, height - (q[:, 1] - ymin) / res - 0.5])
+            rings.append(np.rint(q * 16).astype(np.int32))
+    for ring in rings:  # one at a time: fillPoly leaves where polygons of one call overlap empty
+        cv2.fillPoly(image, [ring], 0, cv2.LINE_8, shift=4)
     meta = {"image": "map.pgm", "mode": "trinary", "resolution": float(res),
             "origin": [float(xmin), float(ymin), 0.0], "negate": 0,
             "occupied_thresh": 0.65, "free_thresh": 0.25, "obstacle_model": model}

@@ -69,6 +69,9 @@ class Session:
     calibration, detection : Calibration, Detection or None
     start, goal : (x, y) metres or None
     planner : str
+    obstacle_model : str
+        What stands for each detected obstacle when planning: ``mar``, ``parts`` (the default) or
+        ``outline`` (:mod:`sbplan.detection.obstacles`), the names the CLI's ``--obstacle-model`` takes.
     route, old_route : Route or None
         The current route and, after a replan, the one it replaced.
     dynamic : list of ndarray (4, 2)
@@ -87,6 +90,7 @@ class Session:
     start: tuple[float, float] | None = None
     goal: tuple[float, float] | None = None
     planner: str = "aux-corner"
+    obstacle_model: str = "parts"
     route: Any = None
     old_route: Any = None
     dynamic: list[np.ndarray] = field(default_factory=list)
@@ -141,7 +145,7 @@ class Session:
                 raise MapFormatError(f"{path}: not a map folder (no reference.png)")
             fresh = Session.from_map(p)
             image = load_image(fresh.reference_path)
-            fresh.planner = self.planner
+            fresh.planner, fresh.obstacle_model = self.planner, self.obstacle_model
             self.__dict__.update(fresh.__dict__)
             self.reference = image
             return image
@@ -195,10 +199,20 @@ class Session:
         return Detector(cal)(image)
 
     def obstacles_m(self) -> list[np.ndarray]:
-        """The detection's obstacle MARs in metres (what the planner avoids)."""
+        """The detection's obstacles in metres under the obstacle model (what the planner avoids)."""
         if self.detection is None:
             return []
-        return [ob.mar_m for ob in self.detection.obstacles]
+        return self.detection.planner_obstacles(self.obstacle_model)
+
+    def clearance_m(self) -> list[np.ndarray]:
+        """The planner's clearance around :meth:`obstacles_m` (enlarged by the robot radius, clipped
+        to the floor), as outer rings in metres: what the map draws around the obstacles."""
+        from ..detection.exports import planner_view
+
+        if self.detection is None:
+            return []
+        _, zones = planner_view(self.detection, self.obstacle_model)
+        return [np.asarray(z.exterior.coords) for z in zones]
 
     def plan(self) -> Any:
         """Plan from start to goal around the detected obstacles and the dynamic ones."""
@@ -226,6 +240,8 @@ class Session:
         return replan(self.route, self.robot_position(), new_obstacles)
 
     def new_obstacles_in(self, detection: Any) -> list[np.ndarray]:
-        """The MARs of ``detection``'s obstacles that cover a cell the current detection left free."""
+        """The polygons (under the obstacle model) of ``detection``'s obstacles that cover a cell the
+        current detection left free."""
         known = set(self.detection.occupied_cells) if self.detection is not None else set()
-        return [ob.mar_m for ob in detection.obstacles if set(map(tuple, ob.cells)) - known]
+        return [p for ob in detection.obstacles if set(map(tuple, ob.cells)) - known
+                for p in ob.polygons_m(self.obstacle_model)]
