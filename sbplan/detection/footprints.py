@@ -105,8 +105,10 @@ class FootprintReference:
     paint : int
         Side of the box the ink is painted from: the symbols' size and a little more, so that the
         box around any ink pixel reaches the floor.
-    ink_cell : ndarray (h, w), int32
-        The cell (flat, row-major) whose symbol's ink core covers the pixel, or -1.
+    ink_cores : list of ndarray
+        Per cell (flat, row-major), the flat indices of its symbol's ink core's pixels.
+    log_reference : ndarray (h, w), float32
+        ``log(max(reference, 1))``.
     probe_x, probe_y : ndarray (cells, 2, S), float32
         :func:`~sbplan.detection.outline_checks.edge_probes` of every cell's reference outline.
     factors : ndarray (cells, S), float32
@@ -124,7 +126,8 @@ class FootprintReference:
     floor_weight: np.ndarray
     floor_weight_sum: np.ndarray
     paint: int
-    ink_cell: np.ndarray
+    ink_cores: list
+    log_reference: np.ndarray
     probe_x: np.ndarray
     probe_y: np.ndarray
     factors: np.ndarray
@@ -168,12 +171,12 @@ def footprint_reference(calibration) -> FootprintReference | None:
     shape = thumb.shape
     small_polys = [_small(p, scale) for p in cal.symbol_polygons]
     ink = np.zeros(shape, np.uint8)
-    ink_cell = np.full(shape, -1, np.int32)
+    cores = []
     one = np.ones((3, 3), np.uint8)
-    for i, p in enumerate(small_polys):
+    for p in small_polys:
         m = _fill(shape, [p])
         ink |= m
-        ink_cell[cv2.erode(m, one) > 0] = i
+        cores.append(np.flatnonzero(cv2.erode(m, one)))
     grown = cv2.dilate(ink, one) > 0
     weight = (~grown).astype(np.float32)
     extent = max(float(np.ptp(p, axis=0).max()) for p in small_polys)
@@ -184,7 +187,9 @@ def footprint_reference(calibration) -> FootprintReference | None:
     quads = np.stack([corners[:-1, :-1], corners[:-1, 1:], corners[1:, 1:], corners[1:, :-1]], axis=2)
     ring = np.concatenate([corners[0, :], corners[1:, -1], corners[-1, -2::-1], corners[-2:0:-1, 0]])
     near_ink = cv2.dilate(ink, np.ones((7, 7), np.uint8)) > 0
-    return FootprintReference(scale, thumb.astype(np.float32), grown, near_ink, weight, weight_sum, paint, ink_cell, x, y,
+    reference = thumb.astype(np.float32)
+    return FootprintReference(scale, reference, grown, near_ink, weight, weight_sum, paint, cores,
+                              cv2.log(np.maximum(reference, np.float32(1))), x, y,
                               edge_factors(cal.edge_contrast), quads, _fill(shape, [ring]) > 0)
 
 
@@ -310,17 +315,20 @@ def pixel_outlines(gray: np.ndarray, occupied: np.ndarray, reference: FootprintR
     ink = ref.ink[win]
     painted = cv2.blur(frame * ref.floor_weight[win], (ref.paint, ref.paint)) / ref.floor_weight_sum[win]
     level = np.where(ink, painted, frame)
-    logl = np.log(np.maximum(level, np.float32(1)))
+    logl = cv2.log(np.maximum(level, np.float32(1)))
     smooth = cv2.blur(logl, (3, 3))
-    centre = float(np.median(smooth[roi]))
+    # the ROI's typical level (a sample's median: the scale only has to put the floor mid-range)
+    centre = float(np.median(smooth[roi][::7]))
     image = np.clip(128.0 + LOG_LEVELS * (smooth - centre), 0, 255).astype(np.uint8)
     markers = np.zeros(frame.shape, np.int32)
     markers[~roi] = 1
     # free symbols' ink and the floor just around their outlines
     free = ~occupied.ravel()
-    cell = ref.ink_cell[win]
-    markers[(cell >= 0) & free[np.maximum(cell, 0)]] = 1
     free_idx = np.flatnonzero(free)
+    cores = np.concatenate([ref.ink_cores[i] for i in free_idx]) if len(free_idx) else np.zeros(0, np.int64)
+    ci, cj = np.divmod(cores, w)
+    keep = (ci >= y0) & (ci < y1) & (cj >= x0) & (cj < x1)
+    markers[ci[keep] - y0, cj[keep] - x0] = 1
     _mark(markers, ref.probe_x[free_idx, 1], ref.probe_y[free_idx, 1], s, (x0, y0), 1)
     # occupied cells' outlines: runs of hidden points (obstacle), runs of visible ones (floor)
     occ_idx = np.flatnonzero(occupied.ravel())
@@ -336,7 +344,7 @@ def pixel_outlines(gray: np.ndarray, occupied: np.ndarray, reference: FootprintR
     _mark(markers, px[:, 1][visible], py[:, 1][visible], s, (x0, y0), 1)
     # an obstacle's print: texture the floor does not have, inside occupied cells
     if texture_seed > 0:
-        raw = np.log(np.maximum(frame, np.float32(1)))
+        raw = cv2.log(np.maximum(frame, np.float32(1)))
         texture = cv2.blur(np.abs(raw - cv2.blur(raw, (3, 3))), (5, 5))
         printed = ((texture > texture_seed) & roi & ~ref.near_ink[win] & (markers == 0)).astype(np.uint8)
         # wear leaves texture too, in thin lines (tyre marks, scratches); an obstacle's print is
@@ -370,8 +378,8 @@ def pixel_outlines(gray: np.ndarray, occupied: np.ndarray, reference: FootprintR
         cv2.watershed(cv2.merge([image, image, image]), markers)
     region = _filled(markers == 2)
     if support > 0:
-        region = _supported(region, occ, seeds == 1, frame, ref.reference[win], texture if texture_seed > 0 else None,
-                            support)
+        region = _supported(region, occ, seeds == 1, frame, ref.log_reference[win],
+                            texture if texture_seed > 0 else None, support)
     if neck > 0:
         region = _hulls(region, neck, seeds == 1)
     if margin > 0:
@@ -390,7 +398,7 @@ def pixel_outlines(gray: np.ndarray, occupied: np.ndarray, reference: FootprintR
     return out
 
 
-def _supported(region: np.ndarray, occ: np.ndarray, floor: np.ndarray, frame: np.ndarray, reference: np.ndarray,
+def _supported(region: np.ndarray, occ: np.ndarray, floor: np.ndarray, frame: np.ndarray, log_reference: np.ndarray,
                texture: np.ndarray | None, share: float) -> np.ndarray:
     """``region`` without the pieces outside the occupied cells ``occ`` that look like the floor:
     a piece stays when at least ``share`` of its pixels differ from the reference by more than
@@ -401,25 +409,34 @@ def _supported(region: np.ndarray, occ: np.ndarray, floor: np.ndarray, frame: np
     box on a floor the light saturates) the watershed's regions meet anywhere.
     """
     outside = region & ~occ
-    if not outside.any():
+    ys, xs = np.nonzero(outside)
+    if not len(ys):
         return region
-    ratio = np.log(np.maximum(frame, np.float32(1))) - np.log(np.maximum(reference, np.float32(1)))
-    w = floor.astype(np.float32)
+    # the work is done around the pieces only (the light is measured 15 pixels around them)
+    h, w = region.shape
+    y0, y1 = max(int(ys.min()) - 15, 0), min(int(ys.max()) + 16, h)
+    x0, x1 = max(int(xs.min()) - 15, 0), min(int(xs.max()) + 16, w)
+    box = (slice(y0, y1), slice(x0, x1))
+    ratio = cv2.log(np.maximum(frame[box], np.float32(1))) - log_reference[box]
+    seeds = floor[box]
+    weight = seeds.astype(np.float32)
     side = 31
-    light = cv2.blur(ratio * w, (side, side)) / np.maximum(cv2.blur(w, (side, side)), np.float32(1e-3))
-    if not floor.any():
-        light[:] = np.float32(np.median(ratio))
+    light = cv2.blur(ratio * weight, (side, side)) / np.maximum(cv2.blur(weight, (side, side)), np.float32(1e-3))
+    if not seeds.any():
+        light[:] = np.float32(np.median(ratio[::3, ::3]))
     changed = np.abs(ratio - light) > CHANGE_LEVEL
     if texture is not None:
-        changed |= texture > TEXTURE_SEED
-    n, labels = cv2.connectedComponents(outside.astype(np.uint8), connectivity=8)
+        changed |= texture[box] > TEXTURE_SEED
+    n, labels = cv2.connectedComponents(outside[box].astype(np.uint8), connectivity=8)
     if n <= 1:
         return region
     counts = np.bincount(labels.ravel(), minlength=n).astype(np.float64)
     hits = np.bincount(labels.ravel(), weights=changed.ravel().astype(np.float64), minlength=n)
     drop = hits < share * counts
     drop[0] = False
-    return region & ~drop[labels]
+    out = region.copy()
+    out[box] &= ~drop[labels]
+    return out
 
 
 def _disc(side: int) -> np.ndarray:
@@ -455,19 +472,21 @@ def _hulls(mask: np.ndarray, neck: int, floor: np.ndarray) -> np.ndarray:
     contours, _ = cv2.findContours(opened, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
     out = mask.copy()
     for c in contours:
-        hull = np.zeros(mask.shape, np.uint8)
-        cv2.fillConvexPoly(hull, cv2.convexHull(c), 1)
-        piece = cv2.contourArea(c)
-        bays = (hull > 0) & ~mask
+        hull = cv2.convexHull(c)
+        x, y, bw, bh = cv2.boundingRect(hull)
+        box = (slice(y, y + bh), slice(x, x + bw))
+        inside = np.zeros((bh, bw), np.uint8)
+        cv2.fillConvexPoly(inside, hull - (x, y), 1)
+        bays = (inside > 0) & ~mask[box]
         if not bays.any():
             continue
         n, labels = cv2.connectedComponents(bays.astype(np.uint8), connectivity=4)
         size = np.bincount(labels.ravel(), minlength=n)
         seeded = np.zeros(n, bool)
-        seeded[labels[floor & bays]] = True
-        fill = (size <= BAY_SHARE * piece) | ~seeded
+        seeded[labels[floor[box] & bays]] = True
+        fill = (size <= BAY_SHARE * cv2.contourArea(c)) | ~seeded
         fill[0] = False
-        out |= fill[labels]
+        out[box] |= fill[labels]
     return out
 
 
