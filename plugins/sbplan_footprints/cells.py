@@ -16,4 +16,4 @@ class CellsFootprint(FootprintRefiner):
     description = "the occupied cells' regions (the paper's outlines)"
 
     def outlines(self, gray, occupied, occupancy, calibration, camera, prepared):
-        return cell_outlines(occupancy)
+        return cell_outlines(occupancy, occupied, calibration.grid)

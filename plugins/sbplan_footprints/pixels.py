@@ -30,7 +30,7 @@ class PixelsFootprint(FootprintRefiner):
 
     def outlines(self, gray, occupied, occupancy, calibration, camera, prepared):
         if prepared is None:  # detection switches to the fallback; called directly, give the same
-            return cell_outlines(occupancy)
+            return cell_outlines(occupancy, occupied, calibration.grid)
         return pixel_outlines(gray, occupied, prepared, camera=camera, reach=self.reach, margin=self.margin,
                               texture_seed=self.texture_seed, neck=self.neck,
                               texture_levels=self.texture_levels, support=self.support)

@@ -52,13 +52,14 @@ def run(args: argparse.Namespace) -> int:
     exports.write_nav2(out / "nav2", detection, model=model)
     ws = cal.workspace
     if ws.start_m and ws.goal_m:
-        from ..planning import plan
+        from ..planning import detection_obstacles, plan
         from ..planning.ompl_planners import quiet
 
         quiet(bool(getattr(args, "verbose", False)))  # OMPL's log only with -v
         # the detection's obstacles under the obstacle model, on its floor
-        route = plan(detection, ws.start_m, ws.goal_m, robot_radius=ws.robot_radius_m, planner=args.planner,
-                     obstacle_model=model)
+        obstacles = detection_obstacles(detection, use=model)
+        route = plan(obstacles.polygons, ws.start_m, ws.goal_m, robot_radius=ws.robot_radius_m,
+                     planner=args.planner, bounds=obstacles.bounds)
         pts = " -> ".join(f"({x:.2f}, {y:.2f})" for x, y in route.waypoints)
         print(f"route ({route.planner}, {route.status}, obstacles as {model}): {route.length:.3f} m "
               f"in {route.time * 1e3:.2f} ms")

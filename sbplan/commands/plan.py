@@ -43,8 +43,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..imageio import write_image
-    from ..planning import load_obstacles, plan
-    from ..planning.api import PlanningMap
+    from ..planning import PlanningMap, load_obstacles, plan
     from ..planning.ompl_planners import quiet
 
     quiet(bool(getattr(args, "verbose", False)))
@@ -56,9 +55,8 @@ def run(args: argparse.Namespace) -> int:
     obs = load_obstacles(args.obstacles, resolution=args.resolution,
                          obstacle_model=model if named or not str(args.obstacles).lower().endswith(".geojson") else None)
     pm = PlanningMap(obs.polygons, robot_radius=args.radius, margin=args.margin, bounds=obs.bounds,
-                     _extra_points=(args.start, args.goal))
-    route = plan(pm, args.start, args.goal, robot_radius=args.radius, margin=args.margin,
-                 planner=args.planner, time_limit=args.time_limit)
+                     include=(args.start, args.goal))
+    route = plan(pm, args.start, args.goal, planner=args.planner, time_limit=args.time_limit)
     if args.plot:
         from ..planning.plot import draw_route
 

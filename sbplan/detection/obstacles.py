@@ -180,7 +180,8 @@ def find_obstacles(occupancy: np.ndarray, occupied: np.ndarray, grid, *, to_worl
     """
     from .footprints import cell_outlines
 
-    return obstacles_from_outlines(cell_outlines(occupancy), occupied, grid, to_world=to_world, to_pixels=to_pixels)
+    return obstacles_from_outlines(cell_outlines(occupancy, occupied, grid), occupied, grid, to_world=to_world,
+                                   to_pixels=to_pixels)
 
 
 def obstacles_from_outlines(outlines: Sequence[np.ndarray], occupied: np.ndarray, grid, *,

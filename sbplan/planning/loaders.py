@@ -76,7 +76,7 @@ def load_obstacles(path: Any, *, resolution: float | None = None, use: str | Non
         if isinstance(data, dict) and data.get("type") == "FeatureCollection":
             return _from_geojson(data, str(p), model if explicit else None)
         if isinstance(data, dict) and str(data.get("format", "")).startswith("sbplan.detection"):
-            return _from_detection(data, str(p), model)
+            return detection_obstacles(data, use=model, source=str(p))
         raise MapFormatError(f"{p}: neither a GeoJSON FeatureCollection nor an sbplan detection result")
     if ext in (".yaml", ".yml"):
         return _from_nav2(p)
@@ -114,25 +114,60 @@ def _poly(coords: Any, where: str) -> Polygon:
     return Polygon(a)
 
 
-def _from_detection(data: dict, src: str, model: str) -> ObstacleSet:
-    from ..detection.obstacles import json_polygons_m
+def detection_obstacles(detection: Any, *, use: str | None = None, source: str = "") -> ObstacleSet:
+    """The obstacles of a detection result, as the planner takes them: the one place that says
+    which polygons of a detection are obstacles (``sbplan demo``, the TUI and
+    :func:`load_obstacles` all come here).
 
-    obs = data.get("obstacles")
+    Parameters
+    ----------
+    detection : Detection or dict
+        A :class:`sbplan.Detection`, or its JSON form (``Detection.to_json()``, the content of a
+        ``result.json``, whose coordinates are rounded to 1e-6 m).
+    use : "mar" | "parts" | "outline"
+        The obstacle model (:mod:`sbplan.detection.obstacles`): each obstacle's minimum-area
+        rectangle (``mar_m``), the rectangles of its parts (``parts_m``, the default) or its
+        outline (``outline_m``).
+    source : str
+        Where the detection came from, for messages and ``ObstacleSet.source``.
+
+    Returns
+    -------
+    ObstacleSet
+        The polygons in metres (world frame, y up) and the bounds of the calibrated grid.
+    """
+    from ..detection.obstacles import DEFAULT_OBSTACLE_MODEL, OBSTACLE_MODELS, json_polygons_m
+
+    use = DEFAULT_OBSTACLE_MODEL if use is None else use
+    if use not in OBSTACLE_MODELS:
+        raise MapFormatError(f"use: expected one of {', '.join(OBSTACLE_MODELS)}, got {use!r}")
+    src = source or "detection"
+    if not isinstance(detection, dict):
+        obstacles = getattr(detection, "obstacles", None)
+        calibration = getattr(detection, "calibration", None)
+        if obstacles is None or calibration is None or not hasattr(detection, "planner_obstacles"):
+            raise InputError(f"detection: expected a Detection or its JSON, got {type(detection).__name__}")
+        try:
+            polys = [Polygon(p) for p in detection.planner_obstacles(use)]
+        except InputError as exc:
+            raise InputError(f"{src}: {exc}") from None
+        return ObstacleSet(polys, tuple(float(v) for v in calibration.world_bounds()), source)
+    obs = detection.get("obstacles")
     if not isinstance(obs, list):
         raise MapFormatError(f"{src}: 'obstacles' must be a list")
     polys = []
     for i, ob in enumerate(obs):
         try:
-            rings = json_polygons_m(ob, model)
+            rings = json_polygons_m(ob, use)
         except (KeyError, TypeError):
             key = {"mar": "'mar_m'", "parts": "'parts_m' (nor 'outline_m' to cut parts from)",
-                   "outline": "'outline_m'"}[model]
+                   "outline": "'outline_m'"}[use]
             raise MapFormatError(f"{src}: obstacles[{i}] has no {key}") from None
         except (ValueError, InputError) as exc:
             raise MapFormatError(f"{src}: obstacles[{i}]: {exc}") from None
-        polys += [_poly(r, f"{src}: obstacles[{i}] ({model})") for r in rings]
-    ws = data.get("workspace") or {}
-    return ObstacleSet(polys, _bounds(ws.get("bounds_m") if isinstance(ws, dict) else None, src), src)
+        polys += [_poly(r, f"{src}: obstacles[{i}] ({use})") for r in rings]
+    ws = detection.get("workspace") or {}
+    return ObstacleSet(polys, _bounds(ws.get("bounds_m") if isinstance(ws, dict) else None, src), source)
 
 
 def _from_geojson(data: dict, src: str, model: str | None = None) -> ObstacleSet:

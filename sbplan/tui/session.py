@@ -42,6 +42,15 @@ def square(centre: Any, side: float) -> np.ndarray:
     return np.array([[x - h, y - h], [x + h, y - h], [x + h, y + h], [x - h, y + h]])
 
 
+def obstacle_arrays(detection: Any, model: str | None = None) -> list[np.ndarray]:
+    """A detection's obstacles as the planner takes them under the obstacle model ``model``
+    (``detection_obstacles``; default ``parts``), in its order, as (M, 2) arrays ``(x, y)`` metres
+    (what the map view draws)."""
+    from ..planning import detection_obstacles
+
+    return [np.asarray(p.exterior.coords)[:-1] for p in detection_obstacles(detection, use=model).polygons]
+
+
 def point_along(waypoints: np.ndarray, fraction: float) -> np.ndarray:
     """The point at ``fraction`` (0..1) of a polyline's length; waypoints (K, 2) ``(x, y)``."""
     wp = np.asarray(waypoints, float).reshape(-1, 2)
@@ -199,10 +208,9 @@ class Session:
         return Detector(cal)(image)
 
     def obstacles_m(self) -> list[np.ndarray]:
-        """The detection's obstacles in metres under the obstacle model (what the planner avoids)."""
-        if self.detection is None:
-            return []
-        return self.detection.planner_obstacles(self.obstacle_model)
+        """The detection's obstacles in metres under the obstacle model, (M, 2) ``(x, y)`` each (what
+        the planner avoids)."""
+        return [] if self.detection is None else obstacle_arrays(self.detection, self.obstacle_model)
 
     def clearance_m(self) -> list[np.ndarray]:
         """The planner's clearance around :meth:`obstacles_m` (enlarged by the robot radius, clipped
@@ -243,5 +251,5 @@ class Session:
         """The polygons (under the obstacle model) of ``detection``'s obstacles that cover a cell the
         current detection left free."""
         known = set(self.detection.occupied_cells) if self.detection is not None else set()
-        return [p for ob in detection.obstacles if set(map(tuple, ob.cells)) - known
+        return [np.asarray(p) for ob in detection.obstacles if set(map(tuple, ob.cells)) - known
                 for p in ob.polygons_m(self.obstacle_model)]
