@@ -12,30 +12,38 @@ large where it hurts). Two footprints are built here, each a stage of kind ``foo
 
 How the pixels decide, on the reference and the frame made four times smaller (the reference
 thumbnail the calibration keeps for registration, and the frame averaged the same way and moved
-into the calibration's pixels when the camera moved):
+into the calibration's pixels when the camera moved), within the occupied cells and their
+neighbours:
 
 1. **Seeds.** Where an obstacle certainly stands and where the floor certainly shows. Each occupied
    cell's symbol outline is probed as the detector's edge check probes it (1.5 px inside and
    outside 128 points, :func:`~sbplan.detection.outline_checks.edge_kept`): a run of points whose
-   ink-to-floor step is gone is hidden (obstacle, inside the outline); a run that keeps it is
-   visible (floor, both sides). Free cells' symbols and their surroundings are floor, and so is
-   everything beyond the occupied cells' neighbours. Where the frame shows texture the reference
-   does not have inside an occupied cell (an obstacle's print, stripes, labels), that is obstacle.
+   ink-to-floor step is gone is hidden (obstacle: on the ink, and :data:`OBSTACLE_SEED_PX` beyond
+   it, where the obstacle that hides the edge stands); a run that keeps it is visible (floor, on
+   both sides). Free cells' symbols and the floor just around them are floor, and so is everything
+   beyond the occupied cells' neighbours. Areas printed with texture the reference does not have
+   (an obstacle's print, stripes, labels) that reach into an occupied cell are obstacle; an opening
+   keeps areas only, so wear's thin lines (tyre marks, scratches) are not taken.
 2. **Regions.** A marker-based watershed (``cv2.watershed``) grows the seeds over the frame's grey
    levels, on a logarithmic scale (light multiplies: a step is a ratio) with the symbols' ink
    painted over by the floor around it (so that the ink of a visible symbol and of a hidden one
    are no walls), smoothed by 3 x 3 (an obstacle's fine print is no wall either). Floor and
    obstacle meet where the frame steps most between them: at the obstacle's edge. A soft cast
-   shadow or a lighting gradient changes the floor over tens of pixels, which is a gentle slope,
-   not a step: the floor's region runs through it and shadows do not grow the footprint.
-3. **Shape.** Where an obstacle's edge does not stand out from the floor at all (a grey box on a
-   grey floor), the floor's region can leak in through that stretch of its edge. Obstacles seen
-   from above are mostly convex, and a leak leaves a bay: each piece of the region (after an
-   opening that separates pieces touching at a corner or by a thin neck) is replaced by its convex
-   hull. Non-convex obstacles pay for it in area, never in recall.
-4. **Margin.** The region is grown by one pixel of the smaller image (4 px), clipped to the grid's
-   area, and traced; an outline through the centres of those pixels keeps at least 2 px of margin
-   around every pixel it found.
+   shadow or a lighting gradient changes the floor over tens of pixels, a slope rather than a
+   step: the floor's region runs through it.
+3. **Support.** Beyond its occupied cells an obstacle is found by the pixels alone; where they say
+   nothing (a white box on a floor the light saturates), the regions meet anywhere. A piece of the
+   region outside the occupied cells stays only when :data:`SUPPORT` of its pixels changed: a
+   level :data:`CHANGE_LEVEL` (log) off the light around (measured on the floor seeds), or print.
+4. **Shape.** Where an obstacle's edge does not stand out from the floor (a grey box on a grey
+   floor), the floor's region can leak in along that stretch of its edge and leave a bay.
+   Obstacles seen from above are mostly convex: each piece (after an opening that parts pieces
+   touching at a corner or by a thin neck) has the bays of its convex hull filled, unless a bay is
+   larger than :data:`BAY_SHARE` of the piece and holds floor seeds (the notch between two
+   obstacles touching at a corner, with a visible symbol in it, is floor). Non-convex obstacles
+   pay for it in area, never in recall.
+5. **Margin.** The region is grown by one pixel of the smaller image (4 px), clipped to the grid's
+   area, traced and simplified (by 0.7 of a small pixel, inside the margin).
 
 Every occupied cell keeps an obstacle: a cell no refined outline reaches gets its cell outline.
 Calibration files without the reference thumbnail or the edge contrast (written before they
@@ -291,7 +299,7 @@ def _black_regions(occupancy: np.ndarray, occupied: np.ndarray | None, grid) -> 
 
 def pixel_outlines(gray: np.ndarray, occupied: np.ndarray, reference: FootprintReference, *,
                    camera: CameraMotion | None = None, reach: float = 1.0, margin: int = 1,
-                   texture_seed: float = TEXTURE_SEED, neck: int = 3, texture_levels: float = 0.0, support: float = SUPPORT, debug: dict | None = None) -> list[np.ndarray]:
+                   texture_seed: float = TEXTURE_SEED, neck: int = 3, support: float = SUPPORT, debug: dict | None = None) -> list[np.ndarray]:
     """Each obstacle's outline from the pixels in and around its occupied cells (see the module's
     description).
 
@@ -313,6 +321,8 @@ def pixel_outlines(gray: np.ndarray, occupied: np.ndarray, reference: FootprintR
         Texture level marking an obstacle's print inside an occupied cell (0: none).
     neck : int
         Side (small pixels) of the opening that parts pieces before their convex hulls (0: no hulls).
+    support : float
+        Share of changed pixels a piece outside the occupied cells needs to stay (0: every piece stays).
     debug : dict, optional
         Filled with the intermediate images (for inspection and tests).
 
@@ -404,12 +414,7 @@ def pixel_outlines(gray: np.ndarray, occupied: np.ndarray, reference: FootprintR
     seeds = markers.copy()
     if debug is not None:
         debug.update(window=(x0, y0, x1, y1), image=image, seeds=seeds, roi=roi)
-    if texture_levels > 0:
-        tex = cv2.blur(np.abs(logl - smooth), (7, 7))
-        timg = np.clip(texture_levels * tex, 0, 255).astype(np.uint8)
-        cv2.watershed(cv2.merge([image, timg, timg]), markers)
-    else:
-        cv2.watershed(cv2.merge([image, image, image]), markers)
+    cv2.watershed(cv2.merge([image, image, image]), markers)
     region = _filled(markers == 2)
     if support > 0:
         region = _supported(region, occ, seeds == 1, frame, ref.log_reference[win],
