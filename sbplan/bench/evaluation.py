@@ -95,13 +95,15 @@ class FootprintScores:
         Pixels of the obstacles the cells can see (those hiding more than the occupied fraction
         of a truly occupied cell's symbol), and how many of them the reported outlines hold.
     reported_px : int
-        Pixels the reported outlines hold.
+        Pixels the reported outlines hold, but for those of obstacles the cells cannot see (a
+        footprint that reaches one holds obstacle, not free floor).
     all_true_px, all_found_px : int
         The same for every obstacle (the cells cannot see one standing between symbols).
     unseen : int
         Obstacles the cells cannot see (in the floor's area).
     model_px : dict
-        Obstacle model -> pixels its polygons hold (the planner's obstacles drawn in pixels).
+        Obstacle model -> pixels its polygons hold (the planner's obstacles drawn in pixels; the
+        same pixels left out).
     outline_m2, parts_m2 : float
         The outlines' area and the ``parts`` model's rectangles' (summed) area, square metres.
     free_points : int
@@ -204,8 +206,11 @@ def score_footprints(detection: Any, truth: Any, *, clearance: float = 0.25) -> 
         union |= m
         if v:
             seen_union |= m
+    # what a footprint holds of an obstacle the cells cannot see is obstacle, not floor: it is not
+    # counted against the area (nor for the recall, which is over the seen obstacles)
+    counted = floor & ~(union & ~seen_union)
     reported = _fill(shape, [ob.outline_px for ob in detection.obstacles]) & floor
-    model_px = {model: int((_fill(shape, [p for ob in detection.obstacles for p in ob.polygons_px(model)]) & floor).sum())
+    model_px = {model: int((_fill(shape, [p for ob in detection.obstacles for p in ob.polygons_px(model)]) & counted).sum())
                 for model in OBSTACLE_MODELS}
     outline_m2 = parts_m2 = 0.0
     if all(ob.outline_m is not None for ob in detection.obstacles):
@@ -228,7 +233,7 @@ def score_footprints(detection: Any, truth: Any, *, clearance: float = 0.25) -> 
             inside |= contains_xy(Polygon(p), world[:, 0], world[:, 1])
         swallowed[model] = int(inside.sum())
     return FootprintScores(
-        true_px=int(seen_union.sum()), found_px=int((seen_union & reported).sum()), reported_px=int(reported.sum()),
+        true_px=int(seen_union.sum()), found_px=int((seen_union & reported).sum()), reported_px=int((reported & counted).sum()),
         all_true_px=int(union.sum()), all_found_px=int((union & reported).sum()),
         unseen=sum(1 for m, v in zip(masks, seen) if m.any() and not v), model_px=model_px,
         outline_m2=outline_m2, parts_m2=parts_m2, free_points=int(free.sum()), swallowed=swallowed)
