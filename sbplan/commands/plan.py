@@ -13,12 +13,18 @@ DESCRIPTION = (
     "(< 128) are obstacles.")
 
 
-def _xy(text: str) -> tuple[float, float]:
-    try:
-        x, y = (float(v) for v in text.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected X,Y, got {text!r}") from None
-    return x, y
+def comma_pair(label: str):
+    """An argparse type: two numbers separated by a comma; ``label`` names them in the error."""
+    def parse(text: str) -> tuple[float, float]:
+        try:
+            a, b = (float(v) for v in text.split(","))
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {label}, got {text!r}") from None
+        return a, b
+    return parse
+
+
+_xy = comma_pair("X,Y")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -37,15 +43,20 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_obstacle_model_argument(parser, what="of a detection JSON (a GeoJSON file says its own)")
     # the option's old name, kept for scripts
     parser.add_argument("--use", choices=("mar", "parts", "outline"), default=None, help=argparse.SUPPRESS)
+    parser.add_argument("--nav2-image-anywhere", action="store_true",
+                        help="a nav2 map.yaml's image may lie outside the YAML's folder (default: refused)")
     parser.add_argument("--json", action="store_true", help="print the route as JSON")
     parser.add_argument("--plot", metavar="PNG", help="draw obstacles, clearance, start, goal and route into PNG")
 
 
 def run(args: argparse.Namespace) -> int:
+    # imported when the command runs: the CLI starts without loading numpy, OpenCV and the pipeline
+    from ..files import check_outputs
     from ..imageio import write_image
     from ..planning import PlanningMap, load_obstacles, plan
     from ..planning.ompl_planners import quiet
 
+    check_outputs({"--plot": args.plot}, {"--obstacles": args.obstacles}, images=("--plot",))
     quiet(bool(getattr(args, "verbose", False)))
     from ..detection.obstacles import DEFAULT_OBSTACLE_MODEL
 
@@ -53,7 +64,8 @@ def run(args: argparse.Namespace) -> int:
     # a GeoJSON file says which model it holds, unless the command line names one
     named = args.use is not None or args.obstacle_model != DEFAULT_OBSTACLE_MODEL
     obs = load_obstacles(args.obstacles, resolution=args.resolution,
-                         obstacle_model=model if named or not str(args.obstacles).lower().endswith(".geojson") else None)
+                         obstacle_model=model if named or not str(args.obstacles).lower().endswith(".geojson") else None,
+                         image_anywhere=args.nav2_image_anywhere)
     pm = PlanningMap(obs.polygons, robot_radius=args.radius, margin=args.margin, bounds=obs.bounds,
                      include=(args.start, args.goal))
     route = plan(pm, args.start, args.goal, planner=args.planner, time_limit=args.time_limit)
