@@ -138,8 +138,10 @@ class PolygonGeometry(BaseModel):
 
 class FeatureProperties(BaseModel):
     id: int
-    kind: Literal["outline", "mar"]
+    kind: Literal["outline", "mar", "part"] = Field(description="the footprint's outline, or what the planner "
+                                                                "avoids under the obstacle model: the MAR or a part")
     cells: list[Cell]
+    part: int | None = Field(default=None, description="the part's number (kind part)")
 
 
 class Feature(BaseModel):
@@ -151,10 +153,13 @@ class Feature(BaseModel):
 class GeoJSONMeta(BaseModel):
     frame: str = Field(description="the coordinate frame")
     bounds_m: tuple[float, float, float, float]
+    obstacle_model: str | None = Field(default=None, description="mar, parts or outline: which features the "
+                                                                 "planner avoids")
 
 
 class FeatureCollection(BaseModel):
-    """GET /obstacles.geojson: each obstacle's outline and MAR, world metres (RFC 7946 with a
+    """GET /obstacles.geojson: each obstacle's outline and what the service plans around (its MAR or
+    its parts, the obstacle model), world metres (RFC 7946 with a
     foreign member ``sbplan``; ``sbplan plan --obstacles`` reads it)."""
 
     type: Literal["FeatureCollection"]
