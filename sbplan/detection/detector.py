@@ -432,16 +432,49 @@ class Detector:
                                returns=array_of(tuple(cells.image_shape), kinds="u"))
         now = time.perf_counter()
         timings["map"] = (now - t) * 1e3
-        outlines = self.footprint.outlines(gray, cells.occupied, occupancy, cal, cells.camera, self._footprint_data)
-        t = time.perf_counter()
-        timings["footprint"] = (t - now) * 1e3
-        obstacles = obstacles_from_outlines(outlines, cells.occupied, cal.grid, to_world=cal.pixels_to_world,
-                                            to_pixels=cal.world_to_pixels)
-        timings["obstacles"] = (time.perf_counter() - t) * 1e3
+        obstacles = self.obstacles(gray, cells.occupied, occupancy, cells.camera, timings)
+        timings["obstacles"] = (time.perf_counter() - now) * 1e3 - timings["footprint"]
         timings["total"] = (time.perf_counter() - t0) * 1e3
         return Detection(cal, cells.occupied, cells.symbols_found, cells.matched_centres_px, occupancy,
                          obstacles, timings, self.stage_names, cells.candidates_px, cells.camera,
                          symbols_rescued=cells.symbols_rescued)
+
+    def obstacles(self, gray: np.ndarray, occupied: np.ndarray, occupancy: np.ndarray, camera: CameraMotion,
+                  timings: dict[str, float] | None = None) -> list:
+        """The obstacles of occupied cells on a frame: each one's outline by the footprint stage,
+        then its cells, MAR and parts (:func:`~sbplan.detection.obstacles.obstacles_from_outlines`).
+
+        Parameters
+        ----------
+        gray : ndarray of shape (H, W), uint8
+            The frame the cells were decided on.
+        occupied : ndarray of shape (rows, cols), bool
+        occupancy : ndarray of shape (H, W), uint8
+            The mapper's occupancy image of ``occupied``.
+        camera : CameraMotion
+            The frame's movement since calibration.
+        timings : dict, optional
+            Gets the footprint stage's milliseconds under ``"footprint"``.
+        """
+        cal = self.calibration
+        t = time.perf_counter()
+        outlines = call_stage(self.footprint, "outlines", gray, occupied, occupancy, cal, camera, self._footprint_data,
+                              returns=_outlines_check)
+        if timings is not None:
+            timings["footprint"] = (time.perf_counter() - t) * 1e3
+        return obstacles_from_outlines(outlines, occupied, cal.grid, to_world=cal.pixels_to_world,
+                                       to_pixels=cal.world_to_pixels)
+
+
+def _outlines_check(v: Any) -> str | None:
+    """The footprint stage's contract: a list of (K >= 3, 2) arrays."""
+    if not isinstance(v, list):
+        return f"{describe_value(v)}, expected a list of (K, 2) outlines"
+    for i, o in enumerate(v):
+        a = np.asarray(o) if not isinstance(o, np.ndarray) else o
+        if a.ndim != 2 or a.shape[1] != 2 or len(a) < 3 or a.dtype.kind not in "iuf" or not np.isfinite(a).all():
+            return f"outline {i} as {describe_value(a)}, expected finite (K >= 3, 2) points"
+    return None
 
 
 def _mask_of(shape: tuple[int, int]):

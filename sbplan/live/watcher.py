@@ -129,6 +129,8 @@ class Watcher:
         Stop after this many frames processed (reason ``limit``).
     stats_interval : float, optional
         Seconds between ``stats`` events (None: none).
+    obstacle_model : "mar" | "parts" | "outline", optional
+        What the route is planned around (default ``parts``, :mod:`sbplan.detection.obstacles`).
     keep_image : bool
         Keep the last frame in :attr:`state` (for a display).
     **stages
@@ -140,7 +142,7 @@ class Watcher:
                  latest: bool | None = None, start: Any = None, goal: Any = None, robot_radius: float | None = None,
                  skip_unchanged: bool = True, change_threshold: float = 10.0, camera_tolerance_px: float = 1.0,
                  max_frames: int | None = None, stats_interval: float | None = None, keep_image: bool = False,
-                 fps: float | None = None, **stages: Any):
+                 fps: float | None = None, obstacle_model: str | None = None, **stages: Any):
         from ..detection import Detector
         from ..detection.calibration import Calibration, load_calibration
 
@@ -156,6 +158,9 @@ class Watcher:
             raise InputError(f"max_reopen: expected an integer >= 1, got {max_reopen!r}")
         if stats_interval is not None and not (isinstance(stats_interval, (int, float)) and stats_interval > 0):
             raise InputError(f"stats_interval: expected a number of seconds > 0, got {stats_interval!r}")
+        from ..detection.obstacles import DEFAULT_OBSTACLE_MODEL, check_obstacle_model
+
+        self.obstacle_model = check_obstacle_model(obstacle_model or DEFAULT_OBSTACLE_MODEL)
         self.calibration = cal = calibration if isinstance(calibration, Calibration) else load_calibration(calibration)
         self.start, self.goal = _point(start, "start"), _point(goal, "goal")
         if (self.start is None) != (self.goal is None):
@@ -362,8 +367,8 @@ class Watcher:
     def _process(self, frame: Frame) -> Iterator[dict]:
         import cv2
 
-        from ..detection.obstacles import find_obstacles
         from ..errors import DetectionError
+        from ..imageio import as_gray
 
         cpu0 = time.thread_time()
         image = frame.image
@@ -413,7 +418,8 @@ class Watcher:
         if flipped.any():
             stable = self.cells.stable
             occupancy = self.detector.mapper.occupancy_image(cal.grid, stable, tuple(cal.image_shape))
-            found_obs = find_obstacles(occupancy, stable, cal.grid, to_world=cal.pixels_to_world)
+            # each obstacle's outline by the detector's footprint stage, on the frame the cells flipped on
+            found_obs = self.detector.obstacles(as_gray(image), stable, occupancy, motion)
             _, changes = self.tracker.update(found_obs)
             for ch in changes:
                 fields = {"obstacle": ch.obstacle.to_json()}
@@ -464,13 +470,14 @@ class Watcher:
         """Plan or replan after ``changes``; the route event, or None when the route stays."""
         from ..planning import plan, replan
 
-        obstacles = [o.mar_m for o in self.tracker.obstacles]
+        model = self.obstacle_model
+        obstacles = [p for o in self.tracker.obstacles for p in o.polygons_m(model)]
         appeared_only = changes and all(c.kind == "appeared" for c in changes)
         incremental = bool(self._route is not None and appeared_only and not forced)
         t0 = time.perf_counter()
         try:
             if incremental:
-                new = [c.obstacle.mar_m for c in changes]
+                new = [p for c in changes for p in c.obstacle.polygons_m(model)]
                 route = replan(self._route, self.start, new)
             else:
                 route = plan(obstacles, self.start, self.goal, robot_radius=self.robot_radius, bounds=self.bounds)
