@@ -80,3 +80,10 @@ class OutOfBoundsError(PlanningError, InputError):
 
 class NoRouteError(PlanningError):
     reason = "no-route"
+
+
+class Cancelled(SbplanError):
+    """A long step was stopped on request: a ``progress`` callback raised it between two steps
+    (the terminal app's Cancel), and the step's result was never made."""
+
+    exit_code = 130
