@@ -172,6 +172,15 @@ def test_overlay_caption_is_off_the_picture(calibration):
     assert (captioned[:band] > 200).any()  # the caption's white text is in the band
 
 
+def test_grid_sizes_are_said_columns_first(calibration, reference):
+    # FLOOR is 8 columns by 5 rows; the message named the lattice "5 x 8"
+    broken = reference.copy()
+    x, y = calibration.grid.centres_px[2, 3]
+    cv2.circle(broken, (int(x), int(y)), int(np.sqrt(calibration.symbol_area_px)), int(np.median(reference)), -1)
+    with pytest.raises(CalibrationError, match="irregular grid: a lattice of 8 columns × 5 rows with no symbol"):
+        calibrate(broken)
+
+
 def run_cli(*args):
     import subprocess
     import sys

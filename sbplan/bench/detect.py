@@ -221,8 +221,8 @@ def format_tables(result: dict[str, Any]) -> str:
     methods = list(dict.fromkeys(r["method"] for r in rows))
     by = {(r["condition"], r["method"]): r for r in rows}
     lines = [
-        f"{len(conds)} conditions x {s['scenes']} scenes, {s['size'][0]}x{s['size'][1]}, grid "
-        f"{s['grid'][0]}x{s['grid'][1]}, seed {s['seed']}; {s['repeat']} timed runs per frame, 1 thread; "
+        f"{len(conds)} conditions x {s['scenes']} scenes, {s['size'][0]}x{s['size'][1]}, grid of "
+        f"{s['grid'][0]} columns × {s['grid'][1]} rows, seed {s['seed']}; {s['repeat']} timed runs per frame, 1 thread; "
         f"{s['machine']}, Python {s['python']}, OpenCV {s['opencv']}, numpy {s['numpy']}",
         "columns: 'default' = sbplan's default pipeline; other sbplan columns swap one stage; "
         "aruco-grid sees the ArUco floor, the rest the symbol floor",

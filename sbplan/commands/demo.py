@@ -21,6 +21,7 @@ def run(args: argparse.Namespace) -> int:
     from ..detection import exports
     from ..detection.calibration import calibrate
     from ..detection import Detector
+    from ..detection.grid import size_text
     from ..errors import MapFormatError
     from ..imageio import load_image, write_json
     from ..workspace import load_workspace
@@ -35,7 +36,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"map {folder}: calibrating on reference.png")
     cal = calibrate(folder / "reference.png", workspace=workspace)
     cal.save(out / "calibration.json")
-    print(f"  grid {cal.grid.cols} x {cal.grid.rows}, threshold {cal.threshold:.4f}, margin {cal.margin:.1f}x")
+    print(f"  grid {size_text(cal.grid.cols, cal.grid.rows)}, threshold {cal.threshold:.4f}, margin {cal.margin:.1f}x")
     image = load_image(folder / args.scene)
     detection = Detector(cal)(image)
     print(f"detecting on {args.scene}")
