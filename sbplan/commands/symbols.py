@@ -7,6 +7,8 @@ import json
 import sys
 import time
 
+#: ``sbplan symbols`` alone prints the list of actions.
+BARE_HELP = True
 HELP = "choose the reference symbol (rank candidates), print floor tiles, show a symbol"
 DESCRIPTION = ("Paper section 3: rank candidate symbols by equations (2)-(4), regularity and confusion "
                "margin (rank); write a printable tile (render); draw a symbol in the terminal (show).")

@@ -6,6 +6,8 @@ import argparse
 import re
 
 HELP = "render a synthetic floor with obstacles and ground truth, or rebuild an example map"
+#: ``sbplan synth`` alone prints this command's help (it needs -o, --map or --list).
+BARE_HELP = True
 DESCRIPTION = ("Render reference.png (the empty floor), scene-XX.png with obstacles and scene-XX.json ground "
                "truth into a folder; or rebuild a named map exactly (--map); or list maps and conditions (--list).")
 
