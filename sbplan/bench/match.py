@@ -142,14 +142,19 @@ def run(args: argparse.Namespace) -> int:
         approx = registry.approximator(args.approximator)
         outlines = [approx.approximate(o) for o in outlines]
     names = [s.strip() for s in args.matchers.split(",") if s.strip()] or registry.matcher_names()
+    from ..commands._progress import StderrProgress
+
     rows = []
-    for name in names:
+    progress = StderrProgress("bench match")
+    for k, name in enumerate(names):
+        progress(k, len(names), name)
         matcher = registry.matcher(name)
         try:
             result = evaluate(matcher, outlines, data.labels, repeat=args.repeat)
         except SbplanError as exc:  # a third-party matcher that fails is reported, not fatal
             result = {"error": str(exc)}
         rows.append({"matcher": name, **result})
+    progress.close()
     sizes = {lab: data.labels.count(lab) for lab in set(data.labels)}
     report = {
         "folder": str(Path(folder)),
