@@ -159,7 +159,7 @@ def test_cli_ompl_planner_logs_only_with_verbose():
     assert r.returncode == 0, r.stderr
     assert "Info:" not in r.stdout + r.stderr and "Debug:" not in r.stdout + r.stderr
     assert r.stderr == ""
-    assert r.stdout.startswith("exact route by rrt-star")
+    assert r.stdout.startswith("route by rrt-star (")
     v = sbplan("-v", *args)
     assert v.returncode == 0 and "Info:" in v.stdout + v.stderr
 
