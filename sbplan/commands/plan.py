@@ -64,8 +64,11 @@ def run(args: argparse.Namespace) -> int:
     if args.plot:
         from ..planning.plot import draw_route
 
+        # a plain occupancy image read without a resolution is in pixels; every other source in metres
+        image = args.obstacles.lower().endswith((".png", ".pgm", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff"))
+        units = "px" if image and args.resolution is None else "m"
         write_image(args.plot, draw_route(pm.obstacles, pm.enlarged, pm.bounds, route=route.waypoints,
-                                          start=args.start, goal=args.goal))
+                                          start=args.start, goal=args.goal, units=units))
     if args.json:
         from .. import registry
 
