@@ -16,6 +16,13 @@ import numpy as np
 #: Stage kinds the operator can swap on the calibration screen, in pipeline order.
 STAGE_KINDS = ("binarizer", "extractor", "approximator", "matcher", "mapper")
 
+#: What the planner avoids of each detected obstacle: name (as ``sbplan plan --use``) -> the
+#: attribute of :class:`sbplan.detection.Obstacle` in metres and what the operator is told.
+OBSTACLE_MODELS = {
+    "mar": ("mar_m", "minimum-area rectangles"),
+    "outline": ("outline_m", "outlines of the occupied cells"),
+}
+
 
 def display_path(path: str | os.PathLike | None) -> str:
     """A path as the operator typed it, relative to the working folder when it lies inside it."""
@@ -71,10 +78,17 @@ class Session:
     planner : str
     route, old_route : Route or None
         The current route and, after a replan, the one it replaced.
+    route_invalid : str or None
+        Why the current route can no longer be driven (a new obstacle blocks it and replanning
+        failed); None while it is valid.
     dynamic : list of ndarray (4, 2)
         Obstacles reported after the detection (placed by the operator or from a newer image).
     robot_fraction : float
         Where the robot is along the route, as a fraction of its length.
+    obstacle_model : str
+        What the planner avoids of each detected obstacle, a key of :data:`OBSTACLE_MODELS`.
+    calibration_path : Path or None
+        The file the calibration was loaded from or last saved to.
     """
 
     map_dir: Path | None = None
@@ -89,8 +103,12 @@ class Session:
     planner: str = "aux-corner"
     route: Any = None
     old_route: Any = None
+    route_invalid: str | None = None
     dynamic: list[np.ndarray] = field(default_factory=list)
     robot_fraction: float = 0.3
+    obstacle_model: str = "mar"
+    calibration_path: Path | None = None
+    _detector: Any = field(default=None, repr=False)
 
     @classmethod
     def from_map(cls, map_dir: str | os.PathLike | None) -> "Session":
@@ -141,7 +159,7 @@ class Session:
                 raise MapFormatError(f"{path}: not a map folder (no reference.png)")
             fresh = Session.from_map(p)
             image = load_image(fresh.reference_path)
-            fresh.planner = self.planner
+            fresh.planner, fresh.obstacle_model = self.planner, self.obstacle_model
             self.__dict__.update(fresh.__dict__)
             self.reference = image
             return image
@@ -149,15 +167,16 @@ class Session:
         self.reference_path, self.reference = p, image
         return image
 
-    def calibrate(self, stages: dict[str, str]) -> Any:
-        """Calibrate on the loaded reference with the chosen stages (kind -> name)."""
+    def calibrate(self, stages: dict[str, str], progress=None) -> Any:
+        """Calibrate on the loaded reference with the chosen stages (kind -> name);
+        ``progress(stage, fraction)`` as for :func:`sbplan.detection.calibration.calibrate`."""
         from ..detection.calibration import calibrate
         from ..errors import InputError
 
         if self.reference is None:
             raise InputError("reference: open a reference image first")
-        cal = calibrate(self.reference, workspace=self.workspace(), **stages)
-        self.calibration = cal
+        cal = calibrate(self.reference, workspace=self.workspace(), progress=progress, **stages)
+        self.calibration, self.calibration_path = cal, None
         ws = cal.workspace
         self.start = self.start or (tuple(ws.start_m) if ws.start_m else None)
         self.goal = self.goal or (tuple(ws.goal_m) if ws.goal_m else None)
@@ -166,8 +185,33 @@ class Session:
     def load_calibration(self, path: str | os.PathLike) -> Any:
         from ..detection.calibration import load_calibration
 
-        self.calibration = load_calibration(path)
+        self.calibration, self.calibration_path = load_calibration(path), Path(path)
         return self.calibration
+
+    def save_calibration(self, path: str | os.PathLike) -> Path:
+        """Write the calibration to ``path`` (atomically); it becomes the session's calibration file."""
+        written = self.require_calibration().save(path)
+        self.calibration_path = Path(written)
+        return self.calibration_path
+
+    def reanchor(self, frame: np.ndarray | None = None) -> tuple[Any, Any]:
+        """The calibration moved to the camera's present pose, measured on ``frame`` (default: the
+        current scene): ``(calibration, CameraMotion)``. Nothing changes here; see :meth:`adopt`."""
+        from ..detection.calibration import update_calibration
+        from ..errors import InputError
+
+        cal = self.require_calibration()
+        frame = self.scene if frame is None else frame
+        if frame is None:
+            raise InputError("re-anchor: open a current camera image first (screen 2)")
+        return update_calibration(cal, frame)
+
+    def adopt(self, calibration: Any) -> None:
+        """Use ``calibration`` from now on: what depended on the old one is dropped."""
+        self.calibration = calibration
+        self.detection = self.route = self.old_route = None
+        self.route_invalid = None
+        self.dynamic = []
 
     def load_scene(self, path: str | os.PathLike) -> np.ndarray:
         from ..imageio import load_image
@@ -184,7 +228,10 @@ class Session:
         return self.calibration
 
     def detect(self, image: np.ndarray | None = None) -> Any:
-        """Detect on ``image`` (default: the loaded scene) with the calibrated stages."""
+        """Detect on ``image`` (default: the loaded scene) with the calibrated stages.
+
+        One :class:`~sbplan.detection.Detector` per calibration: it keeps the camera's last pose,
+        which starts the next frame's registration."""
         from ..detection import Detector
         from ..errors import InputError
 
@@ -192,23 +239,34 @@ class Session:
         image = self.scene if image is None else image
         if image is None:
             raise InputError("scene: open a scene image first")
-        return Detector(cal)(image)
+        if self._detector is None or self._detector.calibration is not cal:
+            self._detector = Detector(cal)
+        return self._detector(image)
 
     def obstacles_m(self) -> list[np.ndarray]:
-        """The detection's obstacle MARs in metres (what the planner avoids)."""
+        """The detection's obstacles in metres, (M, 2) ``(x, y)`` each, as the chosen obstacle
+        model has them (what the planner avoids)."""
+        from ..errors import InputError
+
+        if self.obstacle_model not in OBSTACLE_MODELS:
+            raise InputError(f"obstacle model: expected one of {', '.join(OBSTACLE_MODELS)}, "
+                             f"got {self.obstacle_model!r}")
         if self.detection is None:
             return []
-        return [ob.mar_m for ob in self.detection.obstacles]
+        attr = OBSTACLE_MODELS[self.obstacle_model][0]
+        return [np.asarray(getattr(ob, attr), float) for ob in self.detection.obstacles]
 
-    def plan(self) -> Any:
-        """Plan from start to goal around the detected obstacles and the dynamic ones."""
+    def plan(self, start: Any = None) -> Any:
+        """Plan from ``start`` (default: the session's start) to the goal around the detected
+        obstacles and the dynamic ones."""
         from ..errors import InputError
         from ..planning import plan
 
         cal = self.require_calibration()
-        if self.start is None or self.goal is None:
+        start = self.start if start is None else start
+        if start is None or self.goal is None:
             raise InputError("start/goal: set both (type x, y in metres or move the cursor and press s / g)")
-        return plan(self.obstacles_m() + list(self.dynamic), self.start, self.goal,
+        return plan(self.obstacles_m() + list(self.dynamic), start, self.goal,
                     robot_radius=cal.workspace.robot_radius_m, planner=self.planner, bounds=cal.world_bounds())
 
     def robot_position(self) -> np.ndarray | None:
@@ -229,3 +287,13 @@ class Session:
         """The MARs of ``detection``'s obstacles that cover a cell the current detection left free."""
         known = set(self.detection.occupied_cells) if self.detection is not None else set()
         return [ob.mar_m for ob in detection.obstacles if set(map(tuple, ob.cells)) - known]
+
+    def not_yet_dynamic(self, obstacles: list[np.ndarray]) -> list[np.ndarray]:
+        """Those of ``obstacles`` that are not already dynamic obstacles (nor repeated among
+        themselves): the same obstacle reported twice is one obstacle."""
+        kept: list[np.ndarray] = []
+        for ob in obstacles:
+            ob = np.asarray(ob, float)
+            if not any(o.shape == ob.shape and np.allclose(o, ob, atol=1e-9) for o in [*self.dynamic, *kept]):
+                kept.append(ob)
+        return kept
