@@ -99,6 +99,14 @@ def sbplan_variants(*, all_variants: bool = True) -> list[tuple[str, dict[str, s
     return out
 
 
+def _motion_error(camera, truth) -> tuple[float, float]:
+    """How far the movement a detection reported is from the renderer's: the largest error of
+    the shift (pixels) and of the rotation (degrees)."""
+    m = truth.params["camera"].get("motion") or {"shift_px": [0.0, 0.0], "rotation_deg": 0.0}
+    err_px = math.hypot(camera.shift_px[0] - m["shift_px"][0], camera.shift_px[1] - m["shift_px"][1])
+    return err_px, abs(camera.rotation_deg - m["rotation_deg"])
+
+
 def _timed(fn, image, repeat: int) -> tuple[Any, list[float]]:
     runs, result = [], None
     for _ in range(repeat):
@@ -178,7 +186,7 @@ def measure(*, conditions: list[str] | None = None, scenes: int = 5, size: tuple
                 methods.append((label, False, (None, f"set-up failed: {exc}"), frames))
         for label, is_default, (fn, err), frames in methods:
             step(f"{cond}: {label}")
-            total, times = Scores(), []
+            total, times, motion_px, motion_deg = Scores(), [], [], []
             if fn is not None:
                 for _, image, truth in frames:
                     result, runs = _timed(fn, image, repeat)
@@ -186,6 +194,9 @@ def measure(*, conditions: list[str] | None = None, scenes: int = 5, size: tuple
                     occupied = result.occupied if hasattr(result, "occupied") else result
                     total = total + score_cells(occupied, truth.cells)
                     if is_default:
+                        err_px, err_deg = _motion_error(result.camera, truth)
+                        motion_px.append(err_px)
+                        motion_deg.append(err_deg)
                         for k, v in result.timings_ms.items():
                             stage_ms.setdefault(k, []).append(v)
                         # issue 4's figure: the whole detection, obstacles included
@@ -196,6 +207,9 @@ def measure(*, conditions: list[str] | None = None, scenes: int = 5, size: tuple
                 "precision": total.precision if ok else math.nan, "recall": total.recall if ok else math.nan,
                 "f1": total.f1 if ok else math.nan, "tp": total.tp, "fp": total.fp, "fn": total.fn, "tn": total.tn,
                 "median_ms": float(np.median(times)) if times else math.nan, "error": err,
+                # issue 14's figure: the camera movement reported against the truth, worst frame
+                "motion_error_px": max(motion_px) if motion_px else math.nan,
+                "motion_error_deg": max(motion_deg) if motion_deg else math.nan,
             })
     checks = []
     for cond in names:
@@ -264,11 +278,13 @@ def format_tables(result: dict[str, Any]) -> str:
     errs = [f"{c} / {m}: {r['error']}" for (c, m), r in by.items() if r["error"]]
     lines += errs
     lines.append("")
-    lines.append("condition   default F1  best baseline       its F1  F1 >= all baselines  default ms / aruco ms")
+    lines.append("condition   default F1  best baseline       its F1  F1 >= all baselines  default ms / aruco ms  "
+                 "movement error px / deg")
     for ch in result["checks"]:
+        d = by[(ch["condition"], DEFAULT)]
         lines.append(f"{ch['condition']:<11} {ch['default_f1']:>10.3f}  {ch['best_baseline']:<18} "
                      f"{ch['best_baseline_f1']:>6.3f}  {'yes' if ch['f1_at_least_baselines'] else 'NO':<19}  "
-                     f"{ch['time_over_aruco']:.3f}")
+                     f"{ch['time_over_aruco']:<21.3f}  {d['motion_error_px']:.3f} / {d['motion_error_deg']:.4f}")
     if result["stage_ms"]:
         lines.append("")
         lines.append("default pipeline, median ms per stage over all frames (Detector.find_cells timings):")

@@ -51,16 +51,14 @@ def describe(route) -> str:
 
 def run(args: argparse.Namespace) -> int:
     from ..imageio import write_image
-    from ..planning import load_obstacles, plan
-    from ..planning.api import PlanningMap
+    from ..planning import PlanningMap, load_obstacles, plan
     from ..planning.ompl_planners import quiet
 
     quiet(bool(getattr(args, "verbose", False)))
     obs = load_obstacles(args.obstacles, resolution=args.resolution, use=args.use)
     pm = PlanningMap(obs.polygons, robot_radius=args.radius, margin=args.margin, bounds=obs.bounds,
-                     _extra_points=(args.start, args.goal))
-    route = plan(pm, args.start, args.goal, robot_radius=args.radius, margin=args.margin,
-                 planner=args.planner, time_limit=args.time_limit)
+                     include=(args.start, args.goal))
+    route = plan(pm, args.start, args.goal, planner=args.planner, time_limit=args.time_limit)
     if args.plot:
         from ..planning.plot import draw_route
 

@@ -53,11 +53,12 @@ class Grid:
     def px_to_lattice(self, xy: np.ndarray) -> np.ndarray:
         """Map pixels ``(x, y)`` (N, 2) to fractional lattice coordinates ``(col, row)`` (N, 2)."""
         pts = np.asarray(xy, dtype=np.float64).reshape(-1, 1, 2)
-        return cv2.perspectiveTransform(pts, self._inverse_homography).reshape(-1, 2)
+        return cv2.perspectiveTransform(pts, self.inverse_homography).reshape(-1, 2)
 
     @functools.cached_property
-    def _inverse_homography(self) -> np.ndarray:
-        # detection maps every frame's symbol centres through it
+    def inverse_homography(self) -> np.ndarray:
+        """Pixels ``(x, y, 1)`` -> lattice ``(col, row, w)``: the homography's inverse (detection maps
+        every frame's symbol centres through it)."""
         return np.linalg.inv(self.homography)
 
     def assign(self, xy: np.ndarray) -> np.ndarray:

@@ -48,7 +48,7 @@ from ..errors import CameraMotionError
 if TYPE_CHECKING:
     from .grid import Grid
 
-__all__ = ["CameraMotion", "register", "apply", "thumbnail", "grey_centres", "centre_window", "MIN_SYMBOLS", "MAX_RESIDUAL_PX", "MAX_MOVEMENT_PITCH",
+__all__ = ["CameraMotion", "register", "register_pairs", "refine", "apply", "thumbnail", "grey_centres", "centre_window", "MIN_SYMBOLS", "MAX_RESIDUAL_PX", "MAX_MOVEMENT_PITCH",
            "WARN_SHIFT_PX", "WARN_ROTATION_DEG", "WARN_SCALE"]
 
 #: Fewest symbols paired with cells for a movement to be estimated (a similarity needs two; four
@@ -72,9 +72,12 @@ WARN_SCALE = 0.004
 INLIER_PX = 1.5
 RANSAC_PITCH = 0.02
 #: A homography is preferred over the similarity when it lowers the residual below this fraction
-#: of the similarity's, on at least HOMOGRAPHY_MIN_SYMBOLS pairs.
+#: of the similarity's, on at least HOMOGRAPHY_MIN_SYMBOLS pairs, where the similarity leaves more
+#: than HOMOGRAPHY_MIN_RESIDUAL_PX (grey-level centres fit a similarity to ~0.02 px on a camera
+#: that did not tilt).
 HOMOGRAPHY_GAIN = 0.6
 HOMOGRAPHY_MIN_SYMBOLS = 12
+HOMOGRAPHY_MIN_RESIDUAL_PX = 0.1
 #: The last refit keeps the pairs within TRIM_SIGMAS robust deviations of the median residual
 #: (or TRIM_FLOOR_PX, when that is more).
 TRIM_SIGMAS = 3.0
@@ -198,28 +201,49 @@ def _similarity_lsq(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
     return m
 
 
-def _pair(centres: np.ndarray, grid: "Grid", to_calibration: np.ndarray, pitch: float) -> tuple[np.ndarray, np.ndarray]:
-    """Each centre's nearest cell (flat index, -1 when none is within PAIR_PITCH of a pitch), with
-    the centres first mapped to calibration pixels by ``to_calibration``; and the distances."""
+def _pair(centres: np.ndarray, grid: "Grid", to_calibration: np.ndarray, pitch: float) -> np.ndarray:
+    """Each centre's nearest cell (flat index; -1 when none lies within PAIR_PITCH of a pitch), the
+    centres first mapped to calibration pixels by ``to_calibration``."""
     if not len(centres):
-        return np.zeros(0, np.int64), np.zeros(0)
+        return np.zeros(0, np.int64)
     guess = apply(to_calibration, centres)
-    lattice = grid.px_to_lattice(guess)
-    cell = np.rint(lattice).astype(np.int64)
+    cell = np.rint(apply(grid.inverse_homography, guess)).astype(np.int64)
     col, row = cell[:, 0], cell[:, 1]
     inside = (row >= 0) & (row < grid.rows) & (col >= 0) & (col < grid.cols)
-    flat = np.where(inside, row * grid.cols + col, -1)
-    ref = grid.centres_px.reshape(-1, 2)
-    d = np.full(len(centres), np.inf)
-    d[inside] = np.linalg.norm(ref[flat[inside]] - guess[inside], axis=1)
-    flat[d > PAIR_PITCH * pitch] = -1
-    return flat, d
+    flat = np.where(inside, row * grid.cols + col, 0)
+    d2 = np.sum((grid.centres_px.reshape(-1, 2)[flat] - guess) ** 2, axis=1)
+    return np.where(inside & (d2 <= (PAIR_PITCH * pitch) ** 2), flat, -1)
+
+
+def _trimmed_fit(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """The least-squares similarity of the pairs, refitted without those that stray well beyond the
+    others (centres pulled by something dark beside their symbol err by a fraction of a pixel,
+    inside RANSAC's threshold). Returns the matrix, the mask of the pairs kept and their RMS."""
+    matrix = _similarity_lsq(src, dst)
+    resid = np.linalg.norm(apply(matrix, src) - dst, axis=1)
+    keep = resid <= max(TRIM_FLOOR_PX, TRIM_SIGMAS * 1.4826 * float(np.median(resid)))
+    if MIN_SYMBOLS <= keep.sum() < len(keep):
+        matrix = _similarity_lsq(src[keep], dst[keep])
+        resid = np.linalg.norm(apply(matrix, src[keep]) - dst[keep], axis=1)
+    else:
+        keep = np.ones(len(src), bool)
+    return matrix, keep, float(np.sqrt(np.mean(resid ** 2)))
 
 
 def register(centres_px: np.ndarray, grid: "Grid", image_shape: tuple[int, int], *,
              hint: np.ndarray | None = None, seed: int = 0, reference_thumbnail: np.ndarray | None = None,
              frame: np.ndarray | None = None) -> CameraMotion:
-    """Estimate the camera's movement since calibration from the symbol centres found in a frame.
+    """Estimate the camera's movement since calibration from the symbol centres found in a frame:
+    :func:`register_pairs`'s movement."""
+    return register_pairs(centres_px, grid, image_shape, hint=hint, seed=seed,
+                          reference_thumbnail=reference_thumbnail, frame=frame)[0]
+
+
+def register_pairs(centres_px: np.ndarray, grid: "Grid", image_shape: tuple[int, int], *,
+                   hint: np.ndarray | None = None, seed: int = 0, reference_thumbnail: np.ndarray | None = None,
+                   frame: np.ndarray | None = None) -> tuple[CameraMotion, np.ndarray]:
+    """Estimate the camera's movement since calibration from the symbol centres found in a frame,
+    and the cells the symbols that agree with it were paired with.
 
     Parameters
     ----------
@@ -239,7 +263,10 @@ def register(centres_px: np.ndarray, grid: "Grid", image_shape: tuple[int, int],
 
     Returns
     -------
-    CameraMotion
+    motion : CameraMotion
+    cells : ndarray (N,), int
+        For each of ``centres_px``, the flat cell index (``row * cols + col``) it was paired with
+        as an inlier, or -1 (what :func:`refine` takes).
 
     Raises
     ------
@@ -251,62 +278,88 @@ def register(centres_px: np.ndarray, grid: "Grid", image_shape: tuple[int, int],
     hint = np.eye(3) if hint is None else np.asarray(hint, dtype=np.float64)
     pitch = float(min(grid.pitch_px))
     ref = grid.centres_px.reshape(-1, 2)
-    finite = np.isfinite(centres).all(axis=1)
+    finite = np.flatnonzero(np.isfinite(centres).all(axis=1))
     centres = centres[finite]
     inlier_px = max(INLIER_PX, RANSAC_PITCH * pitch)
 
-    flat, _ = _pair(centres, grid, np.linalg.inv(hint), pitch)
+    flat = _pair(centres, grid, np.linalg.inv(hint), pitch)
     paired = flat >= 0
     n_paired = int(paired.sum())
+    cells = np.full(len(centres_px), -1, np.int64)
     if n_paired < MIN_SYMBOLS:
         return _few_symbols(centres[paired], ref[flat[paired]], hint, image_shape, pitch, inlier_px,
-                            len(centres))
+                            len(centres)), cells
     cv2.setRNGSeed(int(seed))
-    m2, inl = cv2.estimateAffinePartial2D(ref[flat[paired]], centres[paired], method=cv2.RANSAC,
-                                          ransacReprojThreshold=inlier_px, maxIters=500, confidence=0.999,
-                                          refineIters=0)
+    m2, _ = cv2.estimateAffinePartial2D(ref[flat[paired]], centres[paired], method=cv2.RANSAC,
+                                        ransacReprojThreshold=inlier_px, maxIters=500, confidence=0.999,
+                                        refineIters=0)
     if m2 is None:
         raise CameraMotionError(f"cannot estimate the camera's movement: the {n_paired} symbols found do not "
                                 f"move together; recalibrate on the empty floor (sbplan calibrate)")
     matrix = np.vstack([m2, [0.0, 0.0, 1.0]])
-    # pair again with the fitted movement and refit on the inliers, in closed form
-    for _ in range(2):
-        flat, _ = _pair(centres, grid, np.linalg.inv(matrix), pitch)
-        ok = flat >= 0
-        resid = np.linalg.norm(apply(matrix, ref[flat[ok]]) - centres[ok], axis=1)
-        keep = np.flatnonzero(ok)[resid <= 2 * inlier_px]
-        if len(keep) < MIN_SYMBOLS:
-            break
-        matrix = _similarity_lsq(ref[flat[keep]], centres[keep])
-    flat, _ = _pair(centres, grid, np.linalg.inv(matrix), pitch)
+    # pair again with the fitted movement (a centre near half a pitch from the hint's cell finds its
+    # own), keep the inliers and refit them in closed form
+    flat = _pair(centres, grid, np.linalg.inv(matrix), pitch)
     ok = np.flatnonzero(flat >= 0)
     resid = np.linalg.norm(apply(matrix, ref[flat[ok]]) - centres[ok], axis=1)
     inliers = ok[resid <= inlier_px]
-    model = "similarity"
     if len(inliers) < max(MIN_SYMBOLS, MIN_INLIER_SHARE * n_paired):
         raise CameraMotionError(f"cannot estimate the camera's movement: only {len(inliers)} of the {n_paired} "
                                 f"symbols found near their cells move together; the view changed; "
                                 f"recalibrate on the empty floor (sbplan calibrate)")
-    src, dst = ref[flat[inliers]], centres[inliers]
-    matrix = _similarity_lsq(src, dst)
-    # Centres pulled by something dark beside their symbol (an obstacle, a shadow's core) err by a
-    # fraction of a pixel, inside RANSAC's threshold: trim what strays well beyond the others.
-    resid = np.linalg.norm(apply(matrix, src) - dst, axis=1)
-    trim = resid <= max(TRIM_FLOOR_PX, TRIM_SIGMAS * 1.4826 * float(np.median(resid)))
-    if MIN_SYMBOLS <= trim.sum() < len(trim):
-        inliers, src, dst = inliers[trim], src[trim], dst[trim]
-        matrix = _similarity_lsq(src, dst)
-    rms = float(np.sqrt(np.mean(np.sum((apply(matrix, src) - dst) ** 2, axis=1))))
-    if len(inliers) >= HOMOGRAPHY_MIN_SYMBOLS and rms > 0.2:
-        h, _ = cv2.findHomography(src, dst, 0)
-        if h is not None and np.isfinite(h).all():
-            h = h / h[2, 2]
-            rms_h = float(np.sqrt(np.mean(np.sum((apply(h, src) - dst) ** 2, axis=1))))
-            if rms_h < HOMOGRAPHY_GAIN * rms:
-                matrix, rms, model = h, rms_h, "homography"
+    matrix, keep, rms = _trimmed_fit(ref[flat[inliers]], centres[inliers])
+    inliers = inliers[keep]
     matrix, ambiguous = _resolve_pitch(matrix, _pitch_ambiguity(flat[inliers], grid), grid,
                                        reference_thumbnail, frame)
-    return _motion(matrix, rms, len(inliers), model, image_shape, grid, pitch, ambiguous)
+    # (a movement a whole pitch away that the texture chose is refused here as too large)
+    motion = _motion(matrix, rms, len(inliers), "similarity", image_shape, grid, pitch, ambiguous)
+    cells[finite[inliers]] = flat[inliers]
+    return motion, cells
+
+
+def refine(centres_px: np.ndarray, cells: np.ndarray, cell_centres_px: np.ndarray, grid: "Grid",
+           image_shape: tuple[int, int], coarse: CameraMotion) -> CameraMotion:
+    """The movement refitted on precise centres of symbols already paired with their cells.
+
+    Parameters
+    ----------
+    centres_px : ndarray (N, 2)
+        Sub-pixel centres of symbols in the frame (:func:`grey_centres`); NaN rows are left out.
+    cells : ndarray (N,), int
+        Each one's flat cell index (from :func:`register_pairs`).
+    cell_centres_px : ndarray (rows * cols, 2)
+        The same kind of centre measured on the reference (the calibration's registration centres).
+    grid : Grid
+    image_shape : (H, W)
+    coarse : CameraMotion
+        What :func:`register` found; kept where too few centres are usable, and its whole-pitch
+        ambiguity carried over.
+
+    Returns
+    -------
+    CameraMotion
+        A homography where at least HOMOGRAPHY_MIN_SYMBOLS pairs show it fits clearly better
+        than the similarity (a camera that tilted), else the similarity.
+    """
+    ok = np.isfinite(centres_px).all(axis=1) & (cells >= 0)
+    if ok.sum() < MIN_SYMBOLS:
+        return coarse
+    src, dst = cell_centres_px[cells[ok]], centres_px[ok]
+    matrix, keep, rms = _trimmed_fit(src, dst)
+    model = "similarity"
+    if keep.sum() >= HOMOGRAPHY_MIN_SYMBOLS and rms > HOMOGRAPHY_MIN_RESIDUAL_PX:
+        h, _ = cv2.findHomography(src[keep], dst[keep], 0)
+        if h is not None and np.isfinite(h).all() and abs(h[2, 2]) > 1e-12:
+            h = h / h[2, 2]
+            rms_h = float(np.sqrt(np.mean(np.sum((apply(h, src[keep]) - dst[keep]) ** 2, axis=1))))
+            if rms_h < HOMOGRAPHY_GAIN * rms:
+                matrix, rms, model = h, rms_h, "homography"
+    motion = _motion(matrix, rms, int(keep.sum()), model, image_shape, grid, float(min(grid.pitch_px)),
+                     coarse.ambiguous_pitch)
+    if coarse.warning and coarse.ambiguous_pitch and motion.warning != coarse.warning:
+        object.__setattr__(motion, "warning", coarse.warning if motion.warning is None
+                           else f"{motion.warning}; {coarse.warning.split('; ')[-1]}")
+    return motion
 
 
 def _few_symbols(found: np.ndarray, cells: np.ndarray, hint: np.ndarray, image_shape, pitch: float,
@@ -337,9 +390,12 @@ def _pitch_ambiguity(cells: np.ndarray, grid: "Grid") -> list[tuple[int, int]]:
     symbols on the grid: the symbols alone cannot tell those movements from the one found."""
     row, col = np.divmod(cells, grid.cols)
     n = len(cells)
+    if not n:
+        return []
+    # every inlier stays on the grid shifted by (dr, dc) when the extreme ones do
+    r0, r1, c0, c1 = int(row.min()), int(row.max()), int(col.min()), int(col.max())
     return [(dr, dc) for dr in (-1, 0, 1) for dc in (-1, 0, 1)
-            if (dr or dc) and int(((row + dr >= 0) & (row + dr < grid.rows) & (col + dc >= 0)
-                                   & (col + dc < grid.cols)).sum()) >= n]
+            if (dr or dc) and r0 + dr >= 0 and r1 + dr < grid.rows and c0 + dc >= 0 and c1 + dc < grid.cols]
 
 
 #: The reference thumbnail is the reference image made this many times smaller.
@@ -353,8 +409,21 @@ def thumbnail(gray: np.ndarray) -> np.ndarray:
     """The grey image made :data:`THUMBNAIL_FACTOR` times smaller (area average): what calibration
     keeps of the reference to tell movements a pitch apart by the floor's own texture."""
     h, w = gray.shape
-    f = THUMBNAIL_FACTOR
-    return cv2.resize(gray, (max(1, w // f), max(1, h // f)), interpolation=cv2.INTER_AREA)
+    small = _reduced(gray, (max(1, h // THUMBNAIL_FACTOR), max(1, w // THUMBNAIL_FACTOR)))
+    return np.clip(np.rint(small), 0, 255).astype(np.uint8)
+
+
+def _reduced(gray: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """``gray`` reduced to ``shape`` (H, W) by area averaging, by halvings while it is at least
+    twice as large (OpenCV halves about ten times faster than it reduces by 4 at once), in float32
+    (rounding between halvings would blur the floor's faint texture). Returns float32."""
+    gray = gray.astype(np.float32)
+    while gray.shape[0] >= 2 * shape[0] and gray.shape[1] >= 2 * shape[1] \
+            and gray.shape[0] % 2 == 0 and gray.shape[1] % 2 == 0:
+        gray = cv2.resize(gray, (gray.shape[1] // 2, gray.shape[0] // 2), interpolation=cv2.INTER_AREA)
+    if gray.shape != tuple(shape):
+        gray = cv2.resize(gray, (shape[1], shape[0]), interpolation=cv2.INTER_AREA)
+    return gray
 
 
 def _texture(img: np.ndarray) -> np.ndarray:
@@ -368,7 +437,7 @@ def _view_scores(reference_thumb: np.ndarray, frame: np.ndarray, matrices: list[
     correlation over the floor between symbols, on thumbnails)."""
     f = THUMBNAIL_FACTOR
     th, tw = reference_thumb.shape
-    small = cv2.resize(frame, (tw, th), interpolation=cv2.INTER_AREA)
+    small = _reduced(frame, (th, tw))
     tex = _texture(small)
     # the floor between the symbols: the printed grid looks the same a pitch away, its floor does not
     ref = reference_thumb.astype(np.float32)
@@ -501,6 +570,7 @@ def grey_centres(gray: np.ndarray, boxes: np.ndarray, side: int) -> np.ndarray:
     inside = (x0 >= 0) & (y0 >= 0) & (x0 + side <= w) & (y0 + side <= h)
     if not inside.any():
         return out
+    # one copy of each window's rows (a fancy index per pixel costs 25 times more)
     win = np.lib.stride_tricks.sliding_window_view(gray, (side, side))[y0[inside], x0[inside]].astype(np.float32)
     ring = np.concatenate([win[:, 0, :], win[:, -1, :], win[:, 1:-1, 0], win[:, 1:-1, -1]], axis=1)
     floor = ring.mean(axis=1)

@@ -16,11 +16,12 @@ import numpy as np
 #: Stage kinds the operator can swap on the calibration screen, in pipeline order.
 STAGE_KINDS = ("binarizer", "extractor", "approximator", "matcher", "mapper")
 
-#: What the planner avoids of each detected obstacle: name (as ``sbplan plan --use``) -> the
-#: attribute of :class:`sbplan.detection.Obstacle` in metres and what the operator is told.
+#: What the planner avoids of each detected obstacle: the names ``sbplan plan --use`` and
+#: ``sbplan.planning.detection_obstacles(use=...)`` take, with what the operator is told. A model
+#: the planning API gains is one more line here.
 OBSTACLE_MODELS = {
-    "mar": ("mar_m", "minimum-area rectangles"),
-    "outline": ("outline_m", "outlines of the occupied cells"),
+    "mar": "minimum-area rectangles",
+    "outline": "outlines of the occupied cells",
 }
 
 
@@ -47,6 +48,15 @@ def square(centre: Any, side: float) -> np.ndarray:
     x, y = (float(v) for v in centre)
     h = side / 2
     return np.array([[x - h, y - h], [x + h, y - h], [x + h, y + h], [x - h, y + h]])
+
+
+def obstacle_arrays(detection: Any, *, use: str = "mar") -> list[np.ndarray]:
+    """A detection's obstacles as the planner takes them (``detection_obstacles``; ``use`` one of
+    :data:`OBSTACLE_MODELS`), in its order, as (M, 2) arrays ``(x, y)`` metres (what the map view
+    draws)."""
+    from ..planning import detection_obstacles
+
+    return [np.asarray(p.exterior.coords)[:-1] for p in detection_obstacles(detection, use=use).polygons]
 
 
 def point_along(waypoints: np.ndarray, fraction: float) -> np.ndarray:
@@ -246,15 +256,7 @@ class Session:
     def obstacles_m(self) -> list[np.ndarray]:
         """The detection's obstacles in metres, (M, 2) ``(x, y)`` each, as the chosen obstacle
         model has them (what the planner avoids)."""
-        from ..errors import InputError
-
-        if self.obstacle_model not in OBSTACLE_MODELS:
-            raise InputError(f"obstacle model: expected one of {', '.join(OBSTACLE_MODELS)}, "
-                             f"got {self.obstacle_model!r}")
-        if self.detection is None:
-            return []
-        attr = OBSTACLE_MODELS[self.obstacle_model][0]
-        return [np.asarray(getattr(ob, attr), float) for ob in self.detection.obstacles]
+        return [] if self.detection is None else obstacle_arrays(self.detection, use=self.obstacle_model)
 
     def plan(self, start: Any = None) -> Any:
         """Plan from ``start`` (default: the session's start) to the goal around the detected
@@ -286,7 +288,8 @@ class Session:
     def new_obstacles_in(self, detection: Any) -> list[np.ndarray]:
         """The MARs of ``detection``'s obstacles that cover a cell the current detection left free."""
         known = set(self.detection.occupied_cells) if self.detection is not None else set()
-        return [ob.mar_m for ob in detection.obstacles if set(map(tuple, ob.cells)) - known]
+        return [a for ob, a in zip(detection.obstacles, obstacle_arrays(detection, use=self.obstacle_model))
+                if set(map(tuple, ob.cells)) - known]
 
     def not_yet_dynamic(self, obstacles: list[np.ndarray]) -> list[np.ndarray]:
         """Those of ``obstacles`` that are not already dynamic obstacles (nor repeated among

@@ -77,7 +77,7 @@ class RouteScreen(JobScreen):
                 yield Select([(n, n) for n in names], value=s.planner if s.planner in names else Select.NULL,
                              id="planner", compact=True)
                 yield Label("Obstacles as", classes="heading")
-                yield Select([(f"{name}: {what}", name) for name, (_, what) in OBSTACLE_MODELS.items()],
+                yield Select([(f"{name}: {what}", name) for name, what in OBSTACLE_MODELS.items()],
                              value=s.obstacle_model, allow_blank=False, id="obstacle-model", compact=True)
                 yield Button("Plan (p)", id="plan", variant="primary", compact=True)
                 yield Static("no route yet", id="route-info")
