@@ -231,7 +231,10 @@ async def test_at_80x24_every_key_is_seen_the_panel_goes_below_help_scrolls_and_
         box = app.screen.query_one("#help")
         assert box.region.right <= SMALL[0] and box.max_scroll_y > 0
         await pilot.press("pagedown")
-        await pilot.pause()
+        for _ in range(100):  # the scroll is animated: a loaded machine takes its time
+            if box.scroll_y > 0:
+                break
+            await pilot.pause(0.05)
         assert box.scroll_y > 0
         await pilot.press("escape")
         # the detection picture full screen: obstacle numbers are text, at any zoom
