@@ -151,6 +151,15 @@ async def test_a_blocked_route_is_marked_invalid_x_replans_and_an_obstacle_count
 
 
 # -- 3: outputs follow the map, overwriting asks ----------------------------------------------------------
+async def asked_on_enter(app, pilot, field: str, path, named: str) -> None:
+    """Type ``path`` into ``field`` and press Enter: the app asks before overwriting ``named``."""
+    await type_into(pilot, field, str(path))
+    await pilot.press("enter")
+    await pilot.pause()
+    assert isinstance(app.screen, ConfirmScreen) and named in text_of(app, "#confirm-question")
+
+
+
 @aio
 async def test_outputs_follow_the_map_and_overwriting_asks_first(tmp_path):
     from sbplan.detection.calibration import load_calibration
@@ -175,10 +184,7 @@ async def test_outputs_follow_the_map_and_overwriting_asks_first(tmp_path):
         await settle(app, pilot)
         target = tmp_path / "cal.json"
         target.write_text("keep me")
-        await type_into(pilot, "#cal-path", str(target))
-        await pilot.press("enter")
-        await pilot.pause()
-        assert isinstance(app.screen, ConfirmScreen) and "cal.json" in text_of(app, "#confirm-question")
+        await asked_on_enter(app, pilot, "#cal-path", target, "cal.json")
         await pilot.press("n")
         await settle(app, pilot)
         assert target.read_text() == "keep me"
@@ -195,10 +201,7 @@ async def test_outputs_follow_the_map_and_overwriting_asks_first(tmp_path):
         folder = tmp_path / "export"
         folder.mkdir()
         (folder / "overlay.png").write_text("old")
-        await type_into(pilot, "#export-dir", str(folder))
-        await pilot.press("enter")
-        await pilot.pause()
-        assert isinstance(app.screen, ConfirmScreen) and "overlay.png" in text_of(app, "#confirm-question")
+        await asked_on_enter(app, pilot, "#export-dir", folder, "overlay.png")
         await pilot.press("escape")
         await settle(app, pilot)
         assert (folder / "overlay.png").read_text() == "old" and not (folder / "obstacles.geojson").exists()

@@ -52,61 +52,47 @@ async def quiet(pilot) -> None:
     await pilot.pause()
 
 
+async def detected(pilot) -> None:
+    """Calibrated on its own, then screen 2, which detects on its own on first show."""
+    await settle(pilot)
+    await pilot.press("2")
+    await settle(pilot)
+
+
+async def zoomed(pilot) -> None:
+    """The detection picture full screen, 1.5 x about the middle: obstacle numbers stay text."""
+    await detected(pilot)
+    await pilot.press("f")
+    await pilot.press("plus")
+
+
+async def replanned(pilot) -> None:
+    """Screen 3 plans on its own on first show; a dynamic obstacle ahead of the robot replans."""
+    await detected(pilot)
+    await pilot.press("3")
+    await settle(pilot)
+    app = pilot.app
+    view = app.screen.query_one("#map")
+    x, y = point_along(app.session.route.waypoints, 0.6)
+    view.set_cursor((round(x, 1), round(y, 1)))
+    await pilot.press("o")
+
+
+async def helped(pilot) -> None:
+    await quiet(pilot)  # the reference opens and calibrates on its own; its toast goes first
+    await pilot.press("f1")
+
+
+#: screen -> how to get there from start-up
+SCREENS = {"calibration": settle, "detection": detected, "detection-zoomed": zoomed,
+           "route-after-a-replan": replanned, "help": helped}
+
+
 @by_size
-def test_calibration_screen(snap_compare, size):
+@pytest.mark.parametrize("screen", SCREENS)
+def test_screen(snap_compare, screen, size):
     async def run_before(pilot):
-        await settle(pilot)  # the reference opens and calibrates on its own
+        await SCREENS[screen](pilot)
         await quiet(pilot)
 
     assert snap_compare(make_app(), terminal_size=size, run_before=run_before)
-
-
-@by_size
-def test_detection_screen(snap_compare, size):
-    async def run_before(pilot):
-        await settle(pilot)
-        await pilot.press("2")
-        await settle(pilot)  # detects on its own on first show
-        await quiet(pilot)
-
-    assert snap_compare(make_app(), terminal_size=size, run_before=run_before)
-
-
-@by_size
-def test_detection_picture_full_screen_zoomed(snap_compare, size):
-    async def run_before(pilot):
-        await settle(pilot)
-        await pilot.press("2")
-        await settle(pilot)
-        await pilot.press("f")
-        await pilot.press("plus")  # 1.5 x, about the middle: obstacle numbers stay text
-        await quiet(pilot)
-
-    assert snap_compare(make_app(), terminal_size=size, run_before=run_before)
-
-
-@by_size
-def test_route_screen_after_a_replan(snap_compare, size):
-    async def run_before(pilot):
-        await settle(pilot)
-        await pilot.press("2")
-        await settle(pilot)
-        await pilot.press("3")
-        await settle(pilot)  # plans on its own on first show
-        app = pilot.app
-        view = app.screen.query_one("#map")
-        x, y = point_along(app.session.route.waypoints, 0.6)
-        view.set_cursor((round(x, 1), round(y, 1)))
-        await pilot.press("o")
-        await quiet(pilot)
-
-    assert snap_compare(make_app(), terminal_size=size, run_before=run_before)
-
-
-@by_size
-def test_help_screen(snap_compare, size):
-    async def run_before(pilot):
-        await settle(pilot)
-        await quiet(pilot)
-
-    assert snap_compare(make_app(), press=["f1"], terminal_size=size, run_before=run_before)
