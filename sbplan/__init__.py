@@ -6,6 +6,7 @@ The top-level names are imported lazily so that ``import sbplan`` stays cheap.
 from __future__ import annotations
 
 import importlib
+import logging
 from typing import Any
 
 from .errors import (  # noqa: F401  (re-exported)
@@ -22,6 +23,10 @@ from .errors import (  # noqa: F401  (re-exported)
 )
 
 __version__ = "0.1.0"
+
+# A library logs and never prints: without a handler set up by the application (the CLI sets one
+# up with -v), sbplan's log records go nowhere.
+logging.getLogger("sbplan").addHandler(logging.NullHandler())
 
 #: public name -> module that defines it
 _LAZY: dict[str, str] = {

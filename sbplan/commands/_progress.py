@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import sys
 import time
-from typing import TextIO
+from typing import TYPE_CHECKING, TextIO
+
+if TYPE_CHECKING:
+    from rich.progress import Progress, TaskID
 
 
 class StderrProgress:
@@ -26,8 +29,8 @@ class StderrProgress:
         self.delay = delay
         self.stream = stream if stream is not None else sys.stderr
         self.t0 = time.perf_counter()
-        self.bar = None
-        self.task = None
+        self.bar: Progress | None = None
+        self.task: TaskID | None = None
 
     def __call__(self, done: int, total: int, what: str) -> None:
         if time.perf_counter() - self.t0 < self.delay:
@@ -35,15 +38,16 @@ class StderrProgress:
         if not self.stream.isatty():
             print(f"{self.title}: [{min(done + 1, total)}/{total}] {what}", file=self.stream, flush=True)
             return
-        if self.bar is None:
+        if self.bar is None or self.task is None:
+            # rich loads only when a terminal is there to show a bar
             from rich.console import Console
             from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
-            self.bar = Progress(TextColumn(self.title), BarColumn(), MofNCompleteColumn(),
-                                TextColumn("{task.description}"), TimeRemainingColumn(),
-                                console=Console(file=self.stream), transient=True)
-            self.bar.start()
-            self.task = self.bar.add_task(what, total=total)
+            bar = Progress(TextColumn(self.title), BarColumn(), MofNCompleteColumn(),
+                           TextColumn("{task.description}"), TimeRemainingColumn(),
+                           console=Console(file=self.stream), transient=True)
+            bar.start()
+            self.bar, self.task = bar, bar.add_task(what, total=total)
         self.bar.update(self.task, completed=done, total=total, description=what)
 
     def close(self) -> None:

@@ -15,6 +15,8 @@ BENCHMARKS: dict[str, str] = {
     "match": "sbplan.bench.match",
     "detect": "sbplan.bench.detect",
     "plan": "sbplan.bench.plan",
+    "serve": "sbplan.bench.serve",
+    "watch": "sbplan.bench.watch",
 }
 
 

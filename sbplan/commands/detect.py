@@ -25,10 +25,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def summary_lines(detection) -> list[str]:
+    # imported when the command runs: the CLI starts without loading numpy, OpenCV and the pipeline
     from ..detection.obstacles import axis_angle
 
     lines = [
-        f"symbols: {detection.symbols_expected} expected, {detection.symbols_found} found",
+        f"symbols: {detection.symbols_expected} expected, {detection.symbols_found} found"
+        + (f", {detection.symbols_rescued} more whole in the grey image" if detection.symbols_rescued else ""),
         f"occupied cells: {len(detection.occupied_cells)}  (row, col): "
         + " ".join(f"({r},{c})" for r, c in detection.occupied_cells),
         f"obstacles: {len(detection.obstacles)}",
@@ -45,11 +47,20 @@ def summary_lines(detection) -> list[str]:
 
 
 def run(args: argparse.Namespace) -> int:
+    # imported when the command runs: the CLI starts without loading numpy, OpenCV and the pipeline
     from ..detection import exports
     from ..detection import Detector
     from ..detection.calibration import load_calibration
+    from ..files import check_outputs
     from ..imageio import load_image, write_json
 
+    # refused before any work: outputs that are devices, links, folders, inputs or named twice
+    check_outputs({"-o": args.output, "--overlay": args.overlay, "--occupancy": args.occupancy,
+                   "--geojson": args.geojson, "--nav2": args.nav2},
+                  {"scene": args.scene, "-c": args.calibration},
+                  folders={"--nav2": exports.NAV2_FILES}, images=("--overlay", "--occupancy"))
+    if args.nav2_resolution is not None:
+        exports.nav2_resolution(args.nav2_resolution, (1.0, 1.0))
     cal = load_calibration(args.calibration)
     image = load_image(args.scene)
     detection = Detector(cal, **stage_choices(args))(image)

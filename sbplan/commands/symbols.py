@@ -73,6 +73,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _rank(args: argparse.Namespace) -> int:
+    # imported when the command runs: the CLI starts without loading numpy, OpenCV and rich
     from ..imageio import write_json
     from ..symbols.rank import rank_symbols
 
@@ -118,6 +119,7 @@ def _rank(args: argparse.Namespace) -> int:
 
 
 def _render(args: argparse.Namespace) -> int:
+    # imported when the command runs: the CLI starts without loading numpy, OpenCV and rich
     from ..symbols.tile import write_tile
 
     tile = write_tile(args.output, args.name, fmt=args.format, dpi=args.dpi, size=args.size,
@@ -130,6 +132,7 @@ def _render(args: argparse.Namespace) -> int:
 
 
 def _show(args: argparse.Namespace) -> int:
+    # imported when the command runs: the CLI starts without loading numpy, OpenCV and rich
     from ..symbols.terminal import draw
 
     print(draw(args.name, width=args.width, mode=args.mode, angle=args.angle, invert=args.invert))
@@ -137,6 +140,7 @@ def _show(args: argparse.Namespace) -> int:
 
 
 def _list(args: argparse.Namespace) -> int:
+    # imported when the command runs: the CLI starts without loading numpy, OpenCV and rich
     from .. import registry
 
     for name, info in registry.registry().symbols().items():

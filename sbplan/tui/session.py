@@ -9,9 +9,19 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable, Sequence
 
 import numpy as np
+
+from .. import registry
+from ..contracts import StageChoices
+from ..detection import Calibration, Detection, Detector
+from ..detection.calibration import calibrate, load_calibration, update_calibration
+from ..detection.registration import CameraMotion
+from ..errors import CalibrationError, InputError, MapFormatError
+from ..imageio import load_image
+from ..planning import Route, detection_obstacles, plan, replan
+from ..workspace import load_workspace
 
 #: Stage kinds the operator can swap on the calibration screen, in pipeline order.
 STAGE_KINDS = ("binarizer", "extractor", "approximator", "matcher", "mapper")
@@ -38,24 +48,20 @@ def display_path(path: str | os.PathLike | None) -> str:
 
 def stage_names() -> dict[str, list[str]]:
     """The installed stage names of every selectable kind, from the plugin registry."""
-    from .. import registry
-
     return {kind: getattr(registry, f"{kind}_names")() for kind in STAGE_KINDS}
 
 
-def square(centre: Any, side: float) -> np.ndarray:
+def square(centre: Sequence[float] | np.ndarray, side: float) -> np.ndarray:
     """A square obstacle (4, 2) ``(x, y)`` metres, axis-aligned, of ``side`` around ``centre``."""
     x, y = (float(v) for v in centre)
     h = side / 2
     return np.array([[x - h, y - h], [x + h, y - h], [x + h, y + h], [x - h, y + h]])
 
 
-def obstacle_arrays(detection: Any, *, use: str = "mar") -> list[np.ndarray]:
+def obstacle_arrays(detection: Detection, *, use: str = "mar") -> list[np.ndarray]:
     """A detection's obstacles as the planner takes them (``detection_obstacles``; ``use`` one of
     :data:`OBSTACLE_MODELS`), in its order, as (M, 2) arrays ``(x, y)`` metres (what the map view
     draws)."""
-    from ..planning import detection_obstacles
-
     return [np.asarray(p.exterior.coords)[:-1] for p in detection_obstacles(detection, use=use).polygons]
 
 
@@ -106,25 +112,23 @@ class Session:
     scene_path: Path | None = None
     reference: np.ndarray | None = None
     scene: np.ndarray | None = None
-    calibration: Any = None
-    detection: Any = None
+    calibration: Calibration | None = None
+    detection: Detection | None = None
     start: tuple[float, float] | None = None
     goal: tuple[float, float] | None = None
     planner: str = "aux-corner"
-    route: Any = None
-    old_route: Any = None
+    route: Route | None = None
+    old_route: Route | None = None
     route_invalid: str | None = None
     dynamic: list[np.ndarray] = field(default_factory=list)
     robot_fraction: float = 0.3
     obstacle_model: str = "mar"
     calibration_path: Path | None = None
-    _detector: Any = field(default=None, repr=False)
+    _detector: Detector | None = field(default=None, repr=False)
 
     @classmethod
     def from_map(cls, map_dir: str | os.PathLike | None) -> "Session":
         """A session on a map folder; the reference and the first scene are picked, not loaded."""
-        from ..errors import MapFormatError
-
         s = cls()
         if map_dir is None:
             return s
@@ -147,8 +151,6 @@ class Session:
 
     def workspace(self):
         """The map's workspace.toml, or None when the map has none."""
-        from ..workspace import load_workspace
-
         if self.map_dir is not None and (self.map_dir / "workspace.toml").is_file():
             return load_workspace(self.map_dir)
         return None
@@ -160,15 +162,12 @@ class Session:
         A map folder starts a new session on that map: its workspace, its first scene, and no
         calibration, detection, route or start/goal carried over from the previous map.
         """
-        from ..errors import MapFormatError
-        from ..imageio import load_image
-
         p = Path(path)
         if p.is_dir():
             if not (p / "reference.png").is_file():
                 raise MapFormatError(f"{path}: not a map folder (no reference.png)")
             fresh = Session.from_map(p)
-            image = load_image(fresh.reference_path)
+            image = load_image(p / "reference.png")  # (fresh.reference_path)
             fresh.planner, fresh.obstacle_model = self.planner, self.obstacle_model
             self.__dict__.update(fresh.__dict__)
             self.reference = image
@@ -177,26 +176,22 @@ class Session:
         self.reference_path, self.reference = p, image
         return image
 
-    def calibrate(self, stages: dict[str, str], progress=None) -> Any:
+    def calibrate(self, stages: StageChoices, progress: Callable[[str, float], None] | None = None) -> Calibration:
         """Calibrate on the loaded reference with the chosen stages (kind -> name);
         ``progress(stage, fraction)`` as for :func:`sbplan.detection.calibration.calibrate`."""
-        from ..detection.calibration import calibrate
-        from ..errors import InputError
-
         if self.reference is None:
             raise InputError("reference: open a reference image first")
         cal = calibrate(self.reference, workspace=self.workspace(), progress=progress, **stages)
         self.calibration, self.calibration_path = cal, None
         ws = cal.workspace
-        self.start = self.start or (tuple(ws.start_m) if ws.start_m else None)
-        self.goal = self.goal or (tuple(ws.goal_m) if ws.goal_m else None)
+        self.start = self.start or ((ws.start_m[0], ws.start_m[1]) if ws.start_m else None)
+        self.goal = self.goal or ((ws.goal_m[0], ws.goal_m[1]) if ws.goal_m else None)
         return cal
 
-    def load_calibration(self, path: str | os.PathLike) -> Any:
-        from ..detection.calibration import load_calibration
-
-        self.calibration, self.calibration_path = load_calibration(path), Path(path)
-        return self.calibration
+    def load_calibration(self, path: str | os.PathLike) -> Calibration:
+        self.calibration = cal = load_calibration(path)
+        self.calibration_path = Path(path)
+        return cal
 
     def save_calibration(self, path: str | os.PathLike) -> Path:
         """Write the calibration to ``path`` (atomically); it becomes the session's calibration file."""
@@ -204,19 +199,16 @@ class Session:
         self.calibration_path = Path(written)
         return self.calibration_path
 
-    def reanchor(self, frame: np.ndarray | None = None) -> tuple[Any, Any]:
+    def reanchor(self, frame: np.ndarray | None = None) -> tuple[Calibration, CameraMotion]:
         """The calibration moved to the camera's present pose, measured on ``frame`` (default: the
         current scene): ``(calibration, CameraMotion)``. Nothing changes here; see :meth:`adopt`."""
-        from ..detection.calibration import update_calibration
-        from ..errors import InputError
-
         cal = self.require_calibration()
         frame = self.scene if frame is None else frame
         if frame is None:
             raise InputError("re-anchor: open a current camera image first (screen 2)")
         return update_calibration(cal, frame)
 
-    def adopt(self, calibration: Any) -> None:
+    def adopt(self, calibration: Calibration) -> None:
         """Use ``calibration`` from now on: what depended on the old one is dropped."""
         self.calibration = calibration
         self.detection = self.route = self.old_route = None
@@ -224,27 +216,20 @@ class Session:
         self.dynamic = []
 
     def load_scene(self, path: str | os.PathLike) -> np.ndarray:
-        from ..imageio import load_image
-
         image = load_image(path)
         self.scene_path, self.scene = Path(path), image
         return image
 
-    def require_calibration(self):
-        from ..errors import CalibrationError
-
+    def require_calibration(self) -> Calibration:
         if self.calibration is None:
             raise CalibrationError("calibration: calibrate on a reference image first (screen 1)")
         return self.calibration
 
-    def detect(self, image: np.ndarray | None = None) -> Any:
+    def detect(self, image: np.ndarray | None = None) -> Detection:
         """Detect on ``image`` (default: the loaded scene) with the calibrated stages.
 
         One :class:`~sbplan.detection.Detector` per calibration: it keeps the camera's last pose,
         which starts the next frame's registration."""
-        from ..detection import Detector
-        from ..errors import InputError
-
         cal = self.require_calibration()
         image = self.scene if image is None else image
         if image is None:
@@ -258,12 +243,9 @@ class Session:
         model has them (what the planner avoids)."""
         return [] if self.detection is None else obstacle_arrays(self.detection, use=self.obstacle_model)
 
-    def plan(self, start: Any = None) -> Any:
+    def plan(self, start: Any = None) -> Route:
         """Plan from ``start`` (default: the session's start) to the goal around the detected
         obstacles and the dynamic ones."""
-        from ..errors import InputError
-        from ..planning import plan
-
         cal = self.require_calibration()
         start = self.start if start is None else start
         if start is None or self.goal is None:
@@ -276,16 +258,13 @@ class Session:
             return None
         return point_along(self.route.waypoints, self.robot_fraction)
 
-    def replan(self, new_obstacles: list[np.ndarray]) -> Any:
+    def replan(self, new_obstacles: list[np.ndarray]) -> Route:
         """Replan from the robot's position on the current route around ``new_obstacles``."""
-        from ..errors import InputError
-        from ..planning import replan
-
         if self.route is None:
             raise InputError("route: plan a route first (p)")
         return replan(self.route, self.robot_position(), new_obstacles)
 
-    def new_obstacles_in(self, detection: Any) -> list[np.ndarray]:
+    def new_obstacles_in(self, detection: Detection) -> list[np.ndarray]:
         """The MARs of ``detection``'s obstacles that cover a cell the current detection left free."""
         known = set(self.detection.occupied_cells) if self.detection is not None else set()
         return [a for ob, a in zip(detection.obstacles, obstacle_arrays(detection, use=self.obstacle_model))

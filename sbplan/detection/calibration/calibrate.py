@@ -11,20 +11,22 @@ from __future__ import annotations
 
 import os
 from dataclasses import replace
-from typing import Any, Callable
+from typing import Any, Callable, Unpack, cast
 
 import cv2
 import numpy as np
 
-from ... import registry
+from ... import limits, registry
+from ...contracts import (Binarizer, ContourApproximator, ContourExtractor, DescriptorMatcher, OccupancyMapper,
+                          StageChoices, distances_between)
 from ...errors import CalibrationError, InputError
-from ...imageio import as_gray, load_image
+from ...imageio import ImageInput, as_gray, load_image
 from ...workspace import Workspace, load_workspace
 from ..grid import Grid, fit_grid
 from ..outline_checks import (EDGE_DEPTH_PX, edge_contrast, edge_probes, inner_deviations, inner_tolerance,
                               outline_deviation, reference_samples, signed_distance_map)
-from ..registration import centre_window, grey_centres, thumbnail
-from .file import Calibration
+from ..registration import CameraMotion, centre_window, grey_centres, thumbnail
+from .file import SYMBOL_WINDOW, Calibration
 from ..working import WorkScale, work_factor
 from .shapes import Shapes, extract_shapes
 from .threshold import match_threshold
@@ -43,7 +45,7 @@ def _stage_spec(stage) -> dict[str, Any]:
     return {"name": stage.name, "options": stage.config()}
 
 
-def _symbol_descriptor_from_image(symbol: Any, *, extractor, approximator, matcher) -> np.ndarray:
+def _symbol_descriptor_from_image(symbol: ImageInput, *, extractor, approximator, matcher) -> np.ndarray:
     gray = as_gray(load_image(symbol) if isinstance(symbol, (str, os.PathLike)) else symbol, name="symbol")
     # An image of one symbol on a plain ground, at any scale: one global threshold separates them
     # (a local binarizer sized for the floor's symbols would not), and the largest dark shape is it.
@@ -55,7 +57,8 @@ def _symbol_descriptor_from_image(symbol: Any, *, extractor, approximator, match
     return shapes.descriptors[int(np.argmax(shapes.areas))]
 
 
-def update_calibration(calibration: Calibration, frame: Any, **stages: Any) -> tuple[Calibration, Any]:
+def update_calibration(calibration: Calibration, frame: ImageInput,
+                       **stages: Unpack[StageChoices]) -> tuple[Calibration, CameraMotion]:
     """Re-anchor a calibration to the camera's present pose from a frame with obstacles on it.
 
     The frame is registered to the calibration with the free symbols it shows
@@ -82,7 +85,7 @@ def update_calibration(calibration: Calibration, frame: Any, **stages: Any) -> t
     CameraMotionError
         The movement cannot be estimated, or is too large to pair symbols with cells.
     """
-    from ..detector import Detector  # the detector is built on calibrations: imported when used
+    from ..detector import Detector  # here, not at the top: detector.py imports this package (a cycle)
 
     cells = Detector(calibration, **stages).find_cells(frame)
     motion = cells.camera
@@ -92,9 +95,11 @@ def update_calibration(calibration: Calibration, frame: Any, **stages: Any) -> t
     return replace(updated, stats=stats), motion
 
 
-def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str | os.PathLike | None = None,
-              cell_size: float | None = None, binarizer: Any = None, extractor: Any = None,
-              approximator: Any = None, matcher: Any = None, mapper: Any = None,
+def calibrate(reference: ImageInput, *, symbol: ImageInput | None = None,
+              workspace: Workspace | str | os.PathLike | None = None, cell_size: float | None = None,
+              binarizer: str | Binarizer | None = None, extractor: str | ContourExtractor | None = None,
+              approximator: str | ContourApproximator | None = None, matcher: str | DescriptorMatcher | None = None,
+              mapper: str | OccupancyMapper | None = None,
               progress: Callable[[str, float], None] | None = None) -> Calibration:
     """Calibrate on an image of the empty floor.
 
@@ -111,6 +116,7 @@ def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str 
         Grid pitch in metres (both directions) when no workspace is given; default 1.0.
     binarizer, extractor, approximator, matcher, mapper : str or Stage, optional
         Stage names (or instances); defaults in :data:`DEFAULT_STAGES`.
+
     progress : callable(stage, fraction), optional
         Called between the steps with what comes next (``str``) and the share of the work done
         (``float``, 0 to 1). An exception it raises (e.g. :class:`~sbplan.errors.Cancelled`)
@@ -125,6 +131,9 @@ def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str 
     step("reading the reference", 0.0)
     gray = as_gray(load_image(reference) if isinstance(reference, (str, os.PathLike)) else reference,
                    name="reference")
+    # calibration's memory grows with the pixels (about 60 bytes each): refuse before, not during
+    limits.check("image_pixels", gray.size, f"reference: {gray.shape[1]} x {gray.shape[0]} pixels",
+                 "give a smaller image")
     if workspace is not None and not isinstance(workspace, Workspace):
         workspace = load_workspace(workspace)
     if cell_size is not None:
@@ -139,9 +148,11 @@ def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str 
                                   ("matcher", matcher), ("mapper", mapper))}
     h, w = gray.shape
     points_range = (12, max(16, (h + w) // 2))
-    kw = dict(extractor=chosen["extractor"], approximator=chosen["approximator"], matcher=chosen["matcher"])
+    matcher_stage = cast(DescriptorMatcher, chosen["matcher"])  # the registry made it for the kind "matcher"
+    extractor_stage, approximator_stage = chosen["extractor"], chosen["approximator"]
     step("extracting contours", 0.02)
-    shapes = extract_shapes(gray, binarizer=chosen["binarizer"], points_range=points_range, **kw)
+    shapes = extract_shapes(gray, binarizer=chosen["binarizer"], points_range=points_range,
+                            extractor=extractor_stage, approximator=approximator_stage, matcher=matcher_stage)
     given = None if symbol is None else _symbol_descriptor_from_image(
         symbol, extractor=chosen["extractor"], approximator=chosen["approximator"], matcher=chosen["matcher"])
     step("finding the symbol", 0.1)
@@ -152,18 +163,19 @@ def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str 
     # (sbplan.detection.working): a 4K camera costs what the symbols' size asks, not its pixels.
     size = float(np.sqrt(np.median(shapes.areas[members])))
     work = WorkScale(work_factor(size), gray.shape)
+    work_arg = None if work.identity else work
     if not work.identity:
         points_range = (12, max(16, sum(work.work_shape) // 2))
-        kw["work"] = work
     fit = getattr(chosen["binarizer"], "with_symbol_size", None)
-    refit = fit(size * 1.6 / work.factor) if fit is not None else chosen["binarizer"]
+    refit = fit(size * SYMBOL_WINDOW / work.factor) if fit is not None else chosen["binarizer"]
     if refit != chosen["binarizer"] or not work.identity:
         step("extracting contours at the symbol's size", 0.15)
         chosen["binarizer"] = refit
-        shapes = extract_shapes(gray, binarizer=refit, points_range=points_range, **kw)
+        shapes = extract_shapes(gray, binarizer=refit, points_range=points_range, work=work_arg,
+                                extractor=extractor_stage, approximator=approximator_stage, matcher=matcher_stage)
         members = _symbol_members(shapes, chosen["matcher"], ref=given)
     reference_descriptor = np.median(shapes.descriptors[members], axis=0)
-    dist = chosen["matcher"].distance_matrix(shapes.descriptors, reference_descriptor[None, :])[:, 0]
+    dist = distances_between(matcher_stage, shapes.descriptors, reference_descriptor[None, :])[:, 0]
     step("fitting the grid", 0.25)
     grid = fit_grid(shapes.centres[members])
     # What a symbol looks like in later images is not what it looks like in this one: measure the
@@ -176,7 +188,8 @@ def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str 
     distance_map = signed_distance_map(symbol_polygons, gray.shape)
     degraded, deviations, degraded_polygons, degraded_cells, shifts = _degraded_symbols(
         gray, grid, reference_descriptor, cell_area, distance_map,
-        binarizer=chosen["binarizer"], points_range=points_range, progress=step, **kw)
+        binarizer=chosen["binarizer"], points_range=points_range, work=work_arg,
+        extractor=extractor_stage, approximator=approximator_stage, matcher=matcher_stage, progress=step)
     # An obstacle that clips a symbol moves part of its outline by more than light and focus
     # move it; the tolerance sits outside what the degraded copies showed, and at least 1 px.
     outline_tolerance = float(max(1.25 * np.max(deviations), 1.0)) if len(deviations) else 3.0
@@ -249,7 +262,6 @@ def _registration_centres(gray: np.ndarray, symbol_polygons: list[np.ndarray], g
     centres[bad] = fallback[bad]
     return centres.reshape(grid.rows, grid.cols, 2)
 
-
 def _degraded_symbols(gray: np.ndarray, grid: Grid, descriptor: np.ndarray, cell_area: np.ndarray,
                       distance_map: np.ndarray, *,
                       binarizer, extractor, approximator, matcher, points_range, work=None,
@@ -269,7 +281,11 @@ def _degraded_symbols(gray: np.ndarray, grid: Grid, descriptor: np.ndarray, cell
         np.clip(0.3 * g + rng.normal(0, 4, g.shape), 0, 255).astype(np.uint8),
         np.clip(g + rng.normal(0, 8, g.shape), 0, 255).astype(np.uint8),
     ]
-    distances, deviations, polygons, cells_kept, shifts = [], [], [], [], []
+    distances: list[np.ndarray] = []
+    deviations: list[np.ndarray] = []
+    polygons: list[np.ndarray] = []
+    cells_kept: list[np.ndarray] = []
+    shifts: list[np.ndarray] = []
     for k, (what, image) in enumerate(zip(("defocused", "dimmed", "dark and grainy", "noisy"), copies)):
         progress(f"the symbols in a {what} copy", 0.35 + 0.075 * k)
         shapes = extract_shapes(image, binarizer=binarizer, extractor=extractor, approximator=approximator,
@@ -283,7 +299,7 @@ def _degraded_symbols(gray: np.ndarray, grid: Grid, descriptor: np.ndarray, cell
         ok &= np.abs(np.log(ratio)) < np.log(1.3)
         if not ok.any():  # this degradation erased every symbol: it says nothing about them
             continue
-        d = matcher.distance_matrix(shapes.descriptors[ok], descriptor[None, :])[:, 0]
+        d = distances_between(matcher, shapes.descriptors[ok], descriptor[None, :])[:, 0]
         # one shape per cell: the best match (a cell may also hold the odd noise blob)
         flat = cells[ok, 0] * grid.cols + cells[ok, 1]
         order = np.lexsort((d, flat))
@@ -308,7 +324,7 @@ def _symbol_members(shapes: Shapes, matcher, *, ref: np.ndarray | None) -> np.nd
     if n == 0:
         raise CalibrationError("no symbols found in the reference image (no dark shapes of symbol size)")
     if ref is not None:
-        d = matcher.distance_matrix(shapes.descriptors, ref[None, :])[:, 0]
+        d = distances_between(matcher, shapes.descriptors, ref[None, :])[:, 0]
         near = d < getattr(matcher, "default_threshold", 0.5)
         if not near.any():
             raise CalibrationError("no symbols found in the reference image: no contour matches the given symbol")
@@ -325,7 +341,7 @@ def _symbol_members(shapes: Shapes, matcher, *, ref: np.ndarray | None) -> np.nd
 
 def _dominant_repeated_shape(shapes: Shapes, matcher) -> np.ndarray:
     """The largest group of contours with the same shape and the same size."""
-    d = matcher.distance_matrix(shapes.descriptors, shapes.descriptors)
+    d = distances_between(matcher, shapes.descriptors, shapes.descriptors)
     ratio = shapes.areas[:, None] / shapes.areas[None, :]
     same_size = np.abs(np.log(ratio)) < np.log(1.35)
     tight = 0.25 * getattr(matcher, "default_threshold", 0.5)
@@ -334,7 +350,7 @@ def _dominant_repeated_shape(shapes: Shapes, matcher) -> np.ndarray:
     members = np.flatnonzero(alike[seed])
     # widen once around the group's median so the seed's own noise does not decide membership
     median = np.median(shapes.descriptors[members], axis=0)
-    dm = matcher.distance_matrix(shapes.descriptors, median[None, :])[:, 0]
+    dm = distances_between(matcher, shapes.descriptors, median[None, :])[:, 0]
     spread = max(float(np.max(dm[members])), 1e-6)
     area = np.median(shapes.areas[members])
     return np.flatnonzero((dm <= 2.0 * spread) & (np.abs(np.log(shapes.areas / area)) < np.log(1.35)))

@@ -4,17 +4,24 @@ from __future__ import annotations
 
 import threading
 from pathlib import Path
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 from textual import work
 from textual.binding import Binding
 from textual.screen import Screen
+from textual.widgets import Input
 from textual.worker import Worker, get_current_worker
 
 from ...errors import Cancelled
 from ..session import display_path
 from ..widgets.busy import Busy
 from .confirm import ConfirmScreen
+
+if TYPE_CHECKING:
+    from textual import getters
+
+    from ..app import SbplanApp
+    from ..session import Session
 
 #: ``progress(stage, fraction)``: what a step's function is given to report where it is
 Progress = Callable[[str, "float | None"], None]
@@ -35,6 +42,9 @@ class JobScreen(Screen):
     #: that follow the map, so that another map's outputs never go over this one's.
     OUTPUT_FIELDS: dict[str, str] = {}
 
+    if TYPE_CHECKING:  # the app these screens run in (Textual's own pattern; it types it as any App)
+        app = getters.app(SbplanApp)
+
     def __init__(self, *args, **kwargs) -> None:
         super().__init__(*args, **kwargs)
         self._threads: set[int] = set()  # tokens of steps whose thread has not returned yet
@@ -52,7 +62,7 @@ class JobScreen(Screen):
             return
         self._out_seen = out
         for field in self.OUTPUT_FIELDS:
-            self.query_one(f"#{field}").value = self.output_default(field)
+            self.query_one(f"#{field}", Input).value = self.output_default(field)
 
     def confirm_overwrite(self, paths: list, then: Callable[[], None], *, question: str | None = None) -> None:
         """Run ``then()`` at once when none of ``paths`` exists and no ``question`` is given;
@@ -73,7 +83,7 @@ class JobScreen(Screen):
         self.app.push_screen(ConfirmScreen(question), answered)
 
     @property
-    def session(self):
+    def session(self) -> Session:
         return self.app.session
 
     @property
@@ -95,9 +105,13 @@ class JobScreen(Screen):
     def _job(self, token: int, label: str, fn: Callable[[Progress], Any], done: Callable[[Any], None],
              failed: Callable[[Exception], None] | None) -> None:
         worker = get_current_worker()
+
+        def progress(stage: str, fraction: float | None = None) -> None:
+            self._progress(worker, token, label, stage, fraction)
+
         try:
             try:
-                result = fn(lambda stage, fraction=None: self._progress(worker, token, label, stage, fraction))
+                result = fn(progress)
             except Cancelled:
                 self._to_ui(self._job_cancelled, token, label)
                 return

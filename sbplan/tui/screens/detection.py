@@ -5,12 +5,16 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 from rich.markup import escape
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical, VerticalScroll
 from textual.widgets import Button, DataTable, Header, Label, Static
 
+from ...detection import exports
+from ...detection.exports import overlay_image
+from ...detection.obstacles import axis_angle
 from ...errors import CameraMotionError, InputError
 from ..session import display_path
 from ..widgets.busy import Busy
@@ -59,7 +63,8 @@ class DetectionScreen(JobScreen):
     def compose(self) -> ComposeResult:
         s = self.session
         self._scene_seen = s.scene_path
-        self._failed_on = None  # (scene path, calibration) whose detection failed: not retried on its own
+        # (scene path, calibration) whose detection failed: not detected again on its own
+        self._failed_on: tuple[str, int] | None = None
         yield Header()
         with Horizontal(classes="body"):
             with Vertical(classes="main"):
@@ -147,8 +152,6 @@ class DetectionScreen(JobScreen):
         det, image = s.detection, s.scene
 
         def job(progress):
-            from ...detection import exports
-
             for k, (name, write) in enumerate((("overlay.png", exports.write_overlay),
                                                ("occupancy.png", exports.write_occupancy),
                                                ("obstacles.geojson", exports.write_geojson),
@@ -211,21 +214,19 @@ class DetectionScreen(JobScreen):
         cam = det.camera
         labels = []
         for ob in det.obstacles:
-            x, y = (cam.to_frame(ob.centre_px) if cam is not None and cam.moved else ob.centre_px)
+            centre = np.asarray(ob.centre_px, dtype=float)
+            x, y = cam.to_frame(centre) if cam is not None and cam.moved else centre
             labels.append((x, y, str(ob.id)))
         self.show_fullscreen(self._overlay(), labels, title=f"{display_path(self.session.scene_path)}: "
                              f"{len(det.occupied_cells)} occupied cells, {len(det.obstacles)} obstacles")
 
     # -- view ------------------------------------------------------------------------------------
     def _overlay(self):
-        from ...detection.exports import overlay_image
-
+        assert self.session.scene is not None  # the detection was made on it
         # the summary at the right says what the caption would: the picture keeps every symbol visible
         return overlay_image(self.session.scene, self.session.detection, caption=False)
 
     def _show(self, error: Exception | None = None) -> None:
-        from ...detection.obstacles import axis_angle  # as sbplan detect prints it: a vertical side is 90
-
         s = self.session
         det = s.detection
         picture = self.query_one("#det-picture", Picture)
@@ -259,6 +260,7 @@ class DetectionScreen(JobScreen):
             size = j.get("size_m")
             table.add_row(str(ob.id), str(len(ob.cells)),
                           f"{size[0]:.2f}×{size[1]:.2f}" if size else "-",
+                          # as sbplan detect prints it: a vertical side is 90, never -90
                           f"{axis_angle(j['angle_m_deg'], 1):.1f}" if "angle_m_deg" in j else "-",
                           f"{j['centre_m'][0]:.2f},{j['centre_m'][1]:.2f}" if "centre_m" in j else "-",
                           key=str(ob.id))

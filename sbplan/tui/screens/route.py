@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from shapely.geometry import LineString, Polygon
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical, VerticalScroll
@@ -10,7 +11,9 @@ from textual.widgets import Button, Header, Input, Label, Select, Static
 
 from rich.markup import escape
 
-from ...errors import InputError
+from ... import registry
+from ...errors import InputError, SbplanError
+from ...imageio import load_image
 from ..session import OBSTACLE_MODELS, display_path, square
 from ..widgets.busy import Busy
 from ..widgets.keys import KeyFooter
@@ -58,8 +61,6 @@ class RouteScreen(JobScreen):
 
     def compose(self) -> ComposeResult:
         s = self.session
-        from ... import registry
-
         self._scene_seen = s.scene_path
         yield Header()
         with Horizontal(classes="body"):
@@ -116,7 +117,7 @@ class RouteScreen(JobScreen):
             text = self.query_one(f"#{key}", Input).value.strip()
             setattr(s, key, parse_point(text, key) if text else None)
         planner = self.query_one("#planner", Select).value
-        if planner is not Select.NULL:
+        if isinstance(planner, str):  # a planner's name; not Select.NULL (nothing chosen)
             s.planner = planner
 
     def action_plan(self) -> None:
@@ -183,8 +184,8 @@ class RouteScreen(JobScreen):
             return
 
         def failed(exc: Exception) -> None:
-            from shapely.geometry import LineString, Polygon
-
+            if s.route is None:
+                return
             line = LineString(s.route.waypoints)
             if any(line.intersects(Polygon(o)) for o in new) or s.route_invalid:
                 s.route_invalid = f"blocked by {what}; replanning failed: {exc}"
@@ -212,8 +213,6 @@ class RouteScreen(JobScreen):
             return
 
         def job(progress):
-            from ...imageio import load_image
-
             progress("reading the image", 0.0)
             image = load_image(path)
             progress("registering and detecting", 0.5)
@@ -304,9 +303,6 @@ class RouteScreen(JobScreen):
 
     @staticmethod
     def _guarantee(planner: str) -> str:
-        from ... import registry
-        from ...errors import SbplanError
-
         try:
             return registry.planner(planner).guarantee
         except SbplanError:
@@ -336,9 +332,9 @@ class RouteScreen(JobScreen):
 
     def on_select_changed(self, event: Select.Changed) -> None:
         s = self.session
-        if event.select.id == "planner" and event.value is not Select.NULL:
+        if event.select.id == "planner" and isinstance(event.value, str):  # not Select.NULL
             s.planner = event.value
-        elif event.select.id == "obstacle-model" and event.value is not Select.NULL and event.value != s.obstacle_model:
+        elif event.select.id == "obstacle-model" and isinstance(event.value, str) and event.value != s.obstacle_model:
             s.obstacle_model = event.value
             self._show()
             if s.route is not None:  # the route was planned around the other shapes

@@ -5,6 +5,7 @@ from __future__ import annotations
 from itertools import groupby
 
 from textual.app import ComposeResult
+from textual.binding import Binding
 from textual.containers import HorizontalGroup
 from textual.widgets import Footer
 from textual.widgets._footer import FooterKey, FooterLabel, KeyGroup
@@ -27,15 +28,15 @@ class KeyFooter(Footer):
         self._two_rows = False
         self._total = 0  # columns the keys need in one row
 
-    def _units(self) -> list[tuple[list, object, int]]:
+    def _units(self) -> list[tuple[list, Binding.Group | None, int]]:
         """``(bindings, Binding.Group or None, columns)`` per footer entry, in order."""
         by_action: dict[str, list] = {}
         for _, binding, enabled, tooltip in self.screen.active_bindings.values():
             if binding.show:
                 by_action.setdefault(binding.action, []).append((binding, enabled, tooltip))
-        units = []
-        for group, members in groupby(by_action.values(), lambda m: m[0][0].group):
-            members = list(members)
+        units: list[tuple[list, Binding.Group | None, int]] = []
+        for group, grouped in groupby(by_action.values(), lambda m: m[0][0].group):
+            members = list(grouped)
             if group is not None and len(members) > 1:
                 keys = [m[0] for m in members]
                 width = sum(len(self.app.get_key_display(b)) + 1 for b, _, _ in keys) + len(group.description) + 3

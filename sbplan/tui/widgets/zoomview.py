@@ -108,9 +108,9 @@ class ZoomView(Widget, can_focus=True):
             top, bottom = canvas[2 * r], canvas[2 * r + 1]
             segments = []
             for c in range(cols):
-                ch = labels.get((r, c))
-                if ch is not None:
-                    segments.append(Segment(ch, _LABEL))
+                label = labels.get((r, c))
+                if label is not None:
+                    segments.append(Segment(label, _LABEL))
                 else:
                     segments.append(Segment("▀", _style(tuple(top[c].tolist()), tuple(bottom[c].tolist()))))
             lines.append(Strip(Segment.simplify(segments), cols))
