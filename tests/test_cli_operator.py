@@ -45,6 +45,9 @@ BENCHES = [
     ("detect", ("--conditions", "clean", "--scenes", "1", "--size", "640x480", "--grid", "6x4", "--repeat", "1",
                 "--variants", "default", "--slow-scenes", "0")),
     ("plan", ("--quick", "--worlds", "rect-5", "--ompl-queries", "0")),
+    ("watch", ("--sizes", "320x240", "--frames", "24", "--loops", "1", "--streams", "0")),
+    ("serve", ("--clients", "1", "--seconds", "0.3", "--warmup", "0.1", "--repeats", "1", "--queries", "5",
+               "--paced", "")),
 ]
 
 
@@ -52,11 +55,17 @@ BENCHES = [
 def test_every_benchmark_shows_progress_on_stderr_and_only_json_on_stdout(name, args, tmp_path):
     if name == "match":
         args = ("--make", tmp_path / "silhouettes", *args)
+    if name == "serve":
+        pytest.importorskip("fastapi")
+        pytest.importorskip("uvicorn")
     r = sbplan("bench", name, *args, "--json")
     assert r.returncode == 0, r.stderr
     json.loads(r.stdout)  # nothing a --json consumer would have to strip
     if name == "match":  # its own progress lines: one per matcher and step, with the time taken
         assert all(m in r.stderr for m in ("centroid-distance", "fourier", "hu-moments")), r.stderr
+        return
+    if name == "serve":  # its own lines: the set-up, then one per load level
+        assert "starting sbplan serve" in r.stderr and "1 clients, run 1" in r.stderr, r.stderr
         return
     steps = [line for line in r.stderr.splitlines() if line.startswith(f"bench {name}: [")]
     assert steps, r.stderr
