@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import json
 import os
+import struct
 import tempfile
+import zlib
 from pathlib import Path
 from typing import Any, Callable
 
@@ -118,14 +120,69 @@ def write_json(path: str | os.PathLike, obj: Any) -> Path:
     return write_atomic(path, text)
 
 
-def write_image(path: str | os.PathLike, image: np.ndarray) -> Path:
-    """Write an image (PNG, PGM, JPEG… by the file's ending) atomically."""
+def write_image(path: str | os.PathLike, image: np.ndarray, *, text: dict[str, str] | None = None) -> Path:
+    """Write an image (PNG, PGM, JPEG… by the file's ending) atomically.
+
+    ``text``: keyword -> value pairs the file carries about itself (what :func:`image_text`
+    reads): PNG ``tEXt`` chunks, or comment lines in a PGM/PPM header; other formats carry none.
+    """
     p = Path(path)
     ext = p.suffix.lower() or ".png"
     ok, buf = cv2.imencode(ext, image)
     if not ok:
         raise ImageError(f"{p}: cannot encode an image as {ext}")
-    return write_atomic(p, buf.tobytes())
+    data = buf.tobytes()
+    if text:
+        data = _with_text(data, ext, text)
+    return write_atomic(p, data)
+
+
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def _with_text(data: bytes, ext: str, text: dict[str, str]) -> bytes:
+    if ext == ".png" and data.startswith(_PNG_SIGNATURE):
+        chunks = b""
+        for key, value in text.items():
+            body = key.encode("latin-1") + b"\0" + value.encode("latin-1", "replace")
+            chunks += (struct.pack(">I", len(body)) + b"tEXt" + body
+                       + struct.pack(">I", zlib.crc32(b"tEXt" + body) & 0xFFFFFFFF))
+        ihdr_end = 8 + 8 + struct.unpack(">I", data[8:12])[0] + 4  # signature, IHDR's length+type, data, CRC
+        return data[:ihdr_end] + chunks + data[ihdr_end:]
+    if ext in (".pgm", ".ppm", ".pnm", ".pbm") and data[:1] == b"P":
+        magic, rest = data.split(b"\n", 1)
+        comments = b"".join(f"# {k}: {v}\n".encode("latin-1", "replace") for k, v in text.items())
+        return magic + b"\n" + comments + rest
+    return data
+
+
+def image_text(path: str | os.PathLike) -> dict[str, str]:
+    """What an image file says about itself: a PNG's ``tEXt`` chunks, or ``# key: value``
+    comment lines of a PGM/PPM header (as :func:`write_image` writes them). Empty for other
+    files, or when the file cannot be read."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(1 << 16)
+    except OSError:
+        return {}
+    out: dict[str, str] = {}
+    if head.startswith(_PNG_SIGNATURE):
+        i = 8
+        while i + 8 <= len(head):
+            n = struct.unpack(">I", head[i:i + 4])[0]
+            kind = head[i + 4:i + 8]
+            if kind in (b"IDAT", b"IEND") or i + 8 + n > len(head):
+                break
+            if kind == b"tEXt":
+                key, _, value = head[i + 8:i + 8 + n].partition(b"\0")
+                out[key.decode("latin-1")] = value.decode("latin-1")
+            i += 12 + n
+    elif head[:1] == b"P" and head[1:2] in b"123456":
+        for line in head.split(b"\n")[1:8]:
+            if line.startswith(b"#") and b":" in line:
+                key, _, value = line[1:].decode("latin-1").partition(":")
+                out[key.strip()] = value.strip()
+    return out
 
 
 def json_default(obj: Any) -> Any:

@@ -6,6 +6,12 @@ import argparse
 from pathlib import Path
 
 HELP = "calibrate, detect and plan a route on an example map (default maps/paper-8x6)"
+DESCRIPTION = (
+    "Calibrate, detect and plan on an example map, writing every output into one folder: "
+    "calibration.json and result.json (pixels of the calibration image; metres of the floor's local "
+    "frame, x along the grid's columns, y up toward row 0), overlay.png and occupancy.png (camera "
+    "pixels: pictures, not maps), obstacles.geojson (WGS84 longitude/latitude when the floor is "
+    "georeferenced, else local metres), nav2/ (a ROS 2 map in local metres) and route.json (local metres).")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -15,6 +21,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("-o", "--output", default=None, metavar="DIR",
                         help="folder for the calibration, result, pictures and maps (default: out/<map name>)")
     parser.add_argument("--planner", default="aux-corner", help="planner stage (default: %(default)s)")
+    from .detect import add_georef_argument
+
+    add_georef_argument(parser)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -33,6 +42,12 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.output or Path("out") / folder.name)
     workspace = load_workspace(folder) if (folder / "workspace.toml").is_file() else None
     print(f"map {folder}: calibrating on reference.png")
+    if args.georef is not None:
+        from dataclasses import replace
+
+        from ..workspace import Georeference, Workspace
+
+        workspace = replace(workspace or Workspace(), georeference=Georeference.parse(args.georef))
     cal = calibrate(folder / "reference.png", workspace=workspace)
     cal.save(out / "calibration.json")
     print(f"  grid {cal.grid.cols} x {cal.grid.rows}, threshold {cal.threshold:.4f}, margin {cal.margin:.1f}x")

@@ -1,0 +1,23 @@
+"""One calibration and detection of the paper floor (maps/paper-8x6) per test session, shared by
+the output tests (GeoJSON, nav2, schemas, logging): calibrating takes a few seconds."""
+
+from __future__ import annotations
+
+import functools
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+PAPER = ROOT / "maps" / "paper-8x6"
+
+
+@functools.cache
+def paper():
+    """(calibration, detection, scene image) of maps/paper-8x6's scene-01."""
+    from sbplan.detection import Detector
+    from sbplan.detection.calibration import calibrate
+    from sbplan.imageio import load_image
+    from sbplan.workspace import load_workspace
+
+    cal = calibrate(PAPER / "reference.png", workspace=load_workspace(PAPER))
+    image = load_image(PAPER / "scene-01.png")
+    return cal, Detector(cal)(image), image
