@@ -6,6 +6,7 @@ The top-level names are imported lazily so that ``import sbplan`` stays cheap.
 from __future__ import annotations
 
 import importlib
+import logging
 from typing import Any
 
 from .errors import (  # noqa: F401  (re-exported)
@@ -21,7 +22,12 @@ from .errors import (  # noqa: F401  (re-exported)
     UnknownStageError,
 )
 
+#: The one place the version is written: pyproject.toml reads it (setuptools' dynamic version),
+#: ``sbplan --version`` prints it.
 __version__ = "0.1.0"
+
+# The library logs and never prints (sbplan.logs); without a handler of the program's own, nothing shows.
+logging.getLogger("sbplan").addHandler(logging.NullHandler())
 
 #: public name -> module that defines it
 _LAZY: dict[str, str] = {

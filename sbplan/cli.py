@@ -9,9 +9,10 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import logging
 import sys
-import traceback
 
+from . import __version__
 from .errors import SbplanError
 
 #: Subcommand name -> module, in the order ``sbplan --help`` lists them.
@@ -45,8 +46,13 @@ def build_parser(selected: str | None = None) -> argparse.ArgumentParser:
         prog="sbplan",
         description="Find obstacles on a floor of reference symbols from a ceiling camera, and plan routes around them.",
     )
-    parser.add_argument("-v", "--verbose", action="store_true",
-                        help="show tracebacks and library log lines (OMPL) on errors")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    parser.add_argument("-v", "--verbose", action="count", default=0,
+                        help="more log lines on stderr: -v what was done (and OMPL's log, tracebacks on "
+                             "errors), -vv stages and timings")
+    parser.add_argument("-q", "--quiet", action="store_true", help="errors only on stderr (no warnings)")
+    parser.add_argument("--log-json", action="store_true",
+                        help="log lines (warnings, errors, -v's) as one JSON object each, for machines")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name, module_name in COMMANDS.items():
         module = import_command(module_name)
@@ -70,18 +76,21 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "_run", None):
         parser.print_help()
         return 2
+    from .logs import configure
+
+    undo = configure(verbosity=args.verbose, quiet=args.quiet, json_lines=args.log_json)
     try:
         return int(args._run(args) or 0)
     except SbplanError as exc:
-        if args.verbose:
-            traceback.print_exc()
-        print(f"sbplan: error: {exc}", file=sys.stderr)
+        logging.getLogger("sbplan.cli").error(str(exc), exc_info=exc if args.verbose else None)
         return exc.exit_code
     except KeyboardInterrupt:
         print("sbplan: interrupted", file=sys.stderr)
         return 130
     except BrokenPipeError:
         return 0
+    finally:
+        undo()
 
 
 if __name__ == "__main__":  # pragma: no cover

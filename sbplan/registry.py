@@ -12,6 +12,7 @@ still load.
 from __future__ import annotations
 
 import importlib.metadata
+import logging
 import threading
 import warnings
 from dataclasses import dataclass
@@ -24,6 +25,8 @@ from .contracts import CONTRACTS, KINDS, Stage
 from .errors import PluginError, UnknownStageError
 
 ENTRY_POINT_GROUP = "sbplan"
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -105,9 +108,11 @@ class StageRegistry:
             return name
         cls = self.get(kind, name)
         try:
-            return cls(**options)
+            stage = cls(**options)
         except TypeError as exc:
             raise PluginError(f"{kind} {name!r}: bad options ({exc})") from None
+        log.debug("%s %s%s", kind, cls.name, f" {options}" if options else "")
+        return stage
 
     def all(self) -> list[StageInfo]:
         order = {k: i for i, k in enumerate(KINDS)}

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 
 from ._stage_options import add_stage_arguments, stage_choices
 
@@ -95,8 +94,6 @@ def run(args: argparse.Namespace) -> int:
         exports.write_geojson(args.geojson, detection)
     if args.nav2:
         exports.write_nav2(args.nav2, detection, resolution=args.nav2_resolution)
-    if detection.camera.warning:
-        print(f"sbplan: warning: {detection.camera.warning}", file=sys.stderr)
     if args.json:
         print(json.dumps(result))
     else:
