@@ -58,6 +58,7 @@ class StageRegistry:
 
     def __init__(self) -> None:
         self._stages: dict[tuple[str, str], StageInfo] = {}
+        self._aliases: dict[tuple[str, str], str] = {}  # (kind, alias) -> name
         self._symbols: dict[str, SymbolInfo] = {}
         self.failures: list[LoadFailure] = []
         self._origin = "sbplan"
@@ -75,11 +76,19 @@ class StageRegistry:
             raise PluginError(f"{kind} {cls.name!r} is registered twice "
                               f"({self._stages[key].origin} and {origin or self._origin})")
         description = cls.description or (cls.__doc__ or "").strip().split("\n")[0]
+        for alias in getattr(cls, "aliases", ()):
+            taken = self._aliases.get((kind, alias))
+            if (kind, alias) in self._stages or (taken is not None and taken != cls.name and not replace):
+                raise PluginError(f"{kind} {cls.name!r}: alias {alias!r} is already a {kind}'s name")
         self._stages[key] = StageInfo(kind, cls.name, cls, origin or self._origin, description)
+        for alias in getattr(cls, "aliases", ()):
+            self._aliases[(kind, alias)] = cls.name
         return cls
 
     def remove(self, kind: str, name: str) -> None:
         self._stages.pop((kind, name), None)
+        for key in [k for k, v in self._aliases.items() if k[0] == kind and v == name]:
+            del self._aliases[key]
 
     def add_symbol(self, name: str, polygon: Any, *, description: str = "", origin: str | None = None,
                    replace: bool = False) -> None:
@@ -95,8 +104,8 @@ class StageRegistry:
     def info(self, kind: str, name: str) -> StageInfo:
         _check_kind(kind)
         try:
-            return self._stages[(kind, name)]
-        except KeyError:
+            return self._stages[(kind, self._aliases.get((kind, name), name))]
+        except (KeyError, TypeError):
             raise UnknownStageError(kind, name, self.names(kind)) from None
 
     def get(self, kind: str, name: str) -> type[Stage]:

@@ -71,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
         route = plan(obstacles, ws.start_m, ws.goal_m, robot_radius=ws.robot_radius_m, planner=args.planner,
                      bounds=cal.world_bounds())
         pts = " -> ".join(f"({x:.2f}, {y:.2f})" for x, y in route.waypoints)
-        print(f"route ({route.planner}, {route.status}): {route.length:.3f} m in {route.time * 1e3:.2f} ms")
+        print(f"route ({route.planner}, {route.status}): {route.length:.3f} m in {route.time_s * 1e3:.2f} ms")
         print(f"  {pts}")
         write_json(out / "route.json", route.to_dict())
     print(f"wrote {out}/: calibration.json, result.json, overlay.png, occupancy.png, obstacles.geojson, nav2/")

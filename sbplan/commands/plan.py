@@ -41,25 +41,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from ..imageio import write_image
     from ..planning import load_obstacles, plan
-    from ..planning.api import PlanningMap
     from ..planning.ompl_planners import quiet
 
     quiet(bool(getattr(args, "verbose", False)))
     obs = load_obstacles(args.obstacles, resolution=args.resolution, use=args.use)
-    pm = PlanningMap(obs.polygons, robot_radius=args.radius, margin=args.margin, bounds=obs.bounds,
-                     _extra_points=(args.start, args.goal))
-    route = plan(pm, args.start, args.goal, robot_radius=args.radius, margin=args.margin,
-                 planner=args.planner, time_limit=args.time_limit)
+    route = plan(obs.polygons, args.start, args.goal, robot_radius=args.radius, margin=args.margin,
+                 planner=args.planner, bounds=obs.bounds, time_limit=args.time_limit)
     if args.plot:
         from ..planning.plot import draw_route
 
+        pm = route.map  # the map plan() built: obstacles, their enlargement, bounds
         write_image(args.plot, draw_route(pm.obstacles, pm.enlarged, pm.bounds, route=route.waypoints,
                                           start=args.start, goal=args.goal))
     if args.json:
-        print(json.dumps({"format": "sbplan.route/1", **route.to_dict()}, indent=2))
+        print(json.dumps(route.to_dict(), indent=2))
     else:
         print(f"{route.status} route by {route.planner}: length {route.length:.6g}, "
-              f"{len(route.waypoints)} waypoints, {route.time * 1e3:.2f} ms")
+              f"{len(route.waypoints)} waypoints, {route.time_s * 1e3:.2f} ms")
         for x, y in route.waypoints:
             print(f"  {x:.6g},{y:.6g}")
     return 0

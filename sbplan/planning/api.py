@@ -29,6 +29,9 @@ TOL = 1e-6
 
 _F64 = np.dtype(float)
 
+#: The ``format`` of a route's JSON (``Route.to_dict``, ``sbplan plan --json``, the demo's route.json).
+ROUTE_FORMAT = "sbplan.route/1"
+
 
 def _point(p: Any, name: str) -> np.ndarray:
     return _point_xy(p, name)[0]
@@ -177,7 +180,7 @@ class PlanningMap:
         if g_esc is not False:
             wp = np.concatenate([wp, g0[None]])
         return Route(wp, status="approximate" if (s_esc is not False or g_esc is not False) else "exact",
-                     planner=planner, time=time.perf_counter() - t0, map=self, goal=g0)
+                     planner=planner, time_s=time.perf_counter() - t0, map=self, goal=g0)
 
     def copy(self) -> "PlanningMap":
         """An independent copy (the visibility cache is copied, not rebuilt)."""
@@ -234,16 +237,17 @@ class Route:
         approximate: the start or goal had to escape from within the clearance of an obstacle, or
         a sampling planner returned an approximate solution.
     planner : str
-    time : float, seconds spent planning
+    time_s : float, seconds spent planning
     replanned : bool
-        False when ``replan`` found the remaining route untouched and returned it unchanged.
+        True only for a route ``replan`` planned anew; False for a fresh ``plan`` and for the
+        remaining route ``replan`` returned unchanged (no new obstacle touched it).
     """
 
     waypoints: np.ndarray
     status: str = "exact"
     planner: str = "aux-corner"
-    time: float = 0.0
-    replanned: bool = True
+    time_s: float = 0.0
+    replanned: bool = False
     map: PlanningMap | None = field(default=None, repr=False, compare=False)
     goal: np.ndarray | None = field(default=None, repr=False, compare=False)
     length: float = field(init=False)
@@ -265,18 +269,18 @@ class Route:
     def _segment(cls, sx: float, sy: float, gx: float, gy: float, planner: str, t0: float, pmap: PlanningMap,
                  goal: np.ndarray) -> "Route":
         """The exact route start -> goal along one segment: what ``Route(np.stack((s, g)),
-        planner=planner, time=..., map=pmap, goal=goal)`` builds, the same length (the sum in
+        planner=planner, time_s=..., map=pmap, goal=goal)`` builds, the same length (the sum in
         __post_init__ of one hypot), without the dataclass machinery (straight-line queries)."""
         r = cls.__new__(cls)
         r.waypoints = np.array(((sx, sy), (gx, gy)))
-        r.status, r.planner, r.replanned, r.map, r.goal = "exact", planner, True, pmap, goal
+        r.status, r.planner, r.replanned, r.map, r.goal = "exact", planner, False, pmap, goal
         r.length = math.hypot(gx - sx, gy - sy)
-        r.time = time.perf_counter() - t0
+        r.time_s = time.perf_counter() - t0
         return r
 
     def to_dict(self) -> dict:
-        return {"status": self.status, "planner": self.planner, "length": self.length,
-                "time_s": self.time, "replanned": self.replanned,
+        return {"format": ROUTE_FORMAT, "status": self.status, "planner": self.planner, "length": self.length,
+                "time_s": self.time_s, "replanned": self.replanned,
                 "waypoints": self.waypoints.tolist()}
 
 
@@ -369,8 +373,9 @@ def replan(route: Route, position: Any, new_obstacles: Any, *, time_limit: float
     line = LineString(remaining) if len(remaining) >= 2 else Point(p)
     touched = any(shapely.relate_pattern(line, q, "T********") or q.contains(Point(p)) for q in big)
     if not touched:
-        return Route(remaining, status=route.status, planner=route.planner, time=time.perf_counter() - t0,
+        return Route(remaining, status=route.status, planner=route.planner, time_s=time.perf_counter() - t0,
                      replanned=False, map=pm, goal=route.goal)
     out = pm.solve(p, route.goal, time_limit=time_limit, planner="aux-corner")
-    out.time = time.perf_counter() - t0
+    out.time_s = time.perf_counter() - t0
+    out.replanned = True
     return out

@@ -160,4 +160,4 @@ def solve_ompl(pmap: Any, start: Any, goal: Any, name: str, *, time_limit: float
     if g_esc:
         wp = np.concatenate([wp, g0[None]])
     return Route(wp, status="approximate" if (s_esc or g_esc) else "exact", planner=name,
-                 time=time.perf_counter() - t0, map=pmap, goal=g0)
+                 time_s=time.perf_counter() - t0, map=pmap, goal=g0)
