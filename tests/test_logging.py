@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from _outputs_fixtures import ROOT, paper
+from _outputs_fixtures import ROOT, moved_floor, paper
 
 #: Where printing is the job: the command line and the ``sbplan bench`` subcommands' output.
 PRINTING_ALLOWED = {"sbplan/cli.py", "sbplan/commands"}
@@ -48,14 +48,7 @@ def test_the_library_never_prints():
 
 @pytest.fixture(scope="module")
 def moved():
-    """A calibration on a rendered floor, and a frame whose camera moved enough for a warning."""
-    from sbplan.detection.calibration import calibrate
-    from sbplan.synth import FloorSpec, SceneSpec, render_reference, render_scene
-
-    floor = FloorSpec(width=800, height=600, cols=8, rows=5)
-    cal = calibrate(render_reference(floor, seed=0))
-    image, _ = render_scene(floor, SceneSpec(n_obstacles=3, effects={"motion": (4.0, -3.0, 0.4, 1.0)}), seed=3)
-    return cal, image
+    return moved_floor()
 
 
 def test_calibrate_detect_and_plan_log_and_print_nothing(capsys, caplog):
