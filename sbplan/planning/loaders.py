@@ -149,7 +149,10 @@ def _from_geojson(data: dict, src: str) -> ObstacleSet:
         geom = f.get("geometry") if isinstance(f, dict) else None
         if not isinstance(geom, dict):
             raise MapFormatError(f"{src}: features[{i}] has no geometry")
-        kind = (f.get("properties") or {}).get("kind")
+        props = f.get("properties") or {}
+        kind = props.get("kind") if isinstance(props, dict) else None
+        if kind is not None and not isinstance(kind, str):
+            raise MapFormatError(f"{src}: features[{i}].properties.kind must be a string")
         t = geom.get("type")
         if t == "Polygon":
             parts = [geom.get("coordinates")]

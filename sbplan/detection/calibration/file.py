@@ -6,6 +6,7 @@ from __future__ import annotations
 import base64
 import binascii
 import json
+import math
 import os
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -15,11 +16,12 @@ import cv2
 import numpy as np
 
 from ... import registry
-from ...errors import CalibrationError
+from ...errors import CalibrationError, SbplanError
 from ...imageio import write_json
 from ...polygons import signed_areas
 from ...workspace import Workspace
 from ..grid import Grid
+from ..outline_checks import EDGE_SAMPLES, SAMPLES
 from ..registration import THUMBNAIL_FACTOR, apply
 from .threshold import match_threshold
 
@@ -202,7 +204,7 @@ class Calibration:
                 "re-run 'sbplan calibrate' on the reference image")
         try:
             sym = data["symbol"]
-            return cls(
+            cal = cls(
                 image_shape=(int(data["image_shape"][0]), int(data["image_shape"][1])),
                 stages={k: dict(v) for k, v in data["stages"].items()},
                 grid=Grid.from_json(data["grid"]),
@@ -226,10 +228,66 @@ class Calibration:
                 workspace=Workspace.from_json(data["workspace"]),
                 stats=dict(data.get("stats", {})),
             )
-        except CalibrationError:
+        except SbplanError:
             raise
-        except (KeyError, TypeError, ValueError, IndexError) as exc:
+        except (KeyError, TypeError, ValueError, IndexError, OverflowError, AttributeError) as exc:
             raise CalibrationError(f"{source}: corrupt calibration file ({type(exc).__name__}: {exc})") from None
+        problem = cal._inconsistency()
+        if problem:
+            raise CalibrationError(f"{source}: corrupt calibration file ({problem})")
+        return cal
+
+    def _inconsistency(self) -> str | None:
+        """What makes this calibration unusable for detection (a file edited or cut short), or None.
+
+        Checked on load, so that detection never meets shapes or values it cannot work with."""
+        from ...contracts import KINDS
+
+        h, w = self.image_shape
+        if h < 1 or w < 1:
+            return f"image_shape {self.image_shape} is empty"
+        for kind in [k for k in KINDS if k != "planner"]:
+            spec = self.stages.get(kind)
+            if not (isinstance(spec, dict) and isinstance(spec.get("name"), str)
+                    and isinstance(spec.get("options", {}), dict)):
+                return f"stages.{kind} must be {{'name': ..., 'options': {{...}}}}"
+        g = self.grid
+        cells = g.rows * g.cols
+        if g.rows < 1 or g.cols < 1:
+            return f"grid of {g.rows} x {g.cols} cells"
+        finite = {"grid.centres_px": g.centres_px, "grid.homography": g.homography,
+                  "symbol.descriptor": self.descriptor}
+        for name, a in finite.items():
+            if a.size == 0 or not np.isfinite(a).all():
+                return f"{name} must be finite numbers"
+        if abs(np.linalg.det(g.homography)) < 1e-12 or not math.isfinite(g.tolerance_px) or g.tolerance_px <= 0:
+            return "grid.homography is singular or grid.tolerance_px not > 0"
+        if self.descriptor.ndim != 1:
+            return "symbol.descriptor must be a list of numbers"
+        for name, polys in (("symbol.polygons", self.symbol_polygons), ("other_polygons", self.other_polygons),
+                            ("degraded_polygons", self.degraded_polygons)):
+            for i, q in enumerate(polys):
+                if q.ndim != 2 or q.shape[0] < 3 or q.shape[1] != 2 or not np.isfinite(q).all():
+                    return f"{name}[{i}] must be at least 3 finite [x, y] points"
+        if len(self.symbol_polygons) != cells:
+            return f"symbol.polygons holds {len(self.symbol_polygons)} outlines for {cells} cells"
+        values = {"symbol.threshold": self.threshold, "symbol.margin": self.margin,
+                  "symbol.area_px": self.symbol_area_px, "symbol.outline_tolerance_px": self.outline_tolerance_px}
+        for name, v in values.items():
+            if not (math.isfinite(v) and v >= 0):
+                return f"{name} must be a finite number >= 0, got {v}"
+        lo, hi = self.symbol_points_range
+        if not 0 <= lo < hi:
+            return f"symbol.points_range must be [low, high] with 0 <= low < high, got {[lo, hi]}"
+        shapes = {"symbol.inner_tolerance_px": (self.inner_tolerance_px, (cells, SAMPLES)),
+                  "symbol.edge_contrast": (self.edge_contrast, (cells, EDGE_SAMPLES)),
+                  "symbol.registration_centres_px": (self.registration_centres_px, (g.rows, g.cols, 2))}
+        for name, (a, shape) in shapes.items():
+            if a is not None and (a.shape != shape or not np.isfinite(a).all()):
+                return f"{name} must be finite numbers of shape {shape}, got shape {a.shape}"
+        if self.reference_thumbnail is not None and self.reference_thumbnail.ndim != 2:
+            return "symbol.reference_thumbnail_png must be a grey image"
+        return None
 
     def save(self, path: str | os.PathLike) -> Path:
         """Write the calibration as JSON, atomically (a failed write never destroys a good file)."""
