@@ -24,6 +24,7 @@ COMMANDS = {
     "synth": "sbplan.commands.synth",
     "symbols": "sbplan.commands.symbols",
     "tui": "sbplan.commands.tui",
+    "serve": "sbplan.commands.serve",
     "plugins": "sbplan.commands.plugins",
     "bench": "sbplan.commands.bench",
 }

@@ -285,3 +285,27 @@ CONTRACTS: dict[str, type[Stage]] = {
     "mapper": OccupancyMapper,
     "planner": Planner,
 }
+
+
+def as_descriptors(descriptors, *, name: str = "descriptors") -> np.ndarray:
+    """Validate matcher descriptors and return them as a float64 ``(n, K)`` array.
+
+    What every ``DescriptorMatcher.distance_matrix`` checks first; a single ``(K,)`` descriptor
+    becomes one row.
+
+    Raises
+    ------
+    InputError
+        If they are not a 1-D or 2-D array of finite numbers.
+    """
+    try:
+        arr = np.asarray(descriptors, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{name}: not an array of numbers ({exc})") from None
+    if arr.ndim == 1:
+        arr = arr[None, :]
+    if arr.ndim != 2:
+        raise InputError(f"{name}: expected descriptors of shape (n, K), got {arr.shape}")
+    if not np.isfinite(arr).all():
+        raise InputError(f"{name}: descriptors contain NaN or infinite values")
+    return arr

@@ -34,6 +34,21 @@ def test_generator_writes_labelled_reproducible_sets(silhouettes, tmp_path):
         make_silhouettes(tmp_path, classes=3, per_class=1)
 
 
+def test_generated_sets_have_mpeg7s_hard_cases(tmp_path):
+    import cv2
+
+    files = make_silhouettes(tmp_path, classes=12, per_class=10, seed=0, size=128)
+    names = {f.stem.rsplit("-", 1)[0] for f in files}
+    assert any(n.startswith("animal") for n in names) and any(n.startswith("sibling") for n in names)
+    holes = 0
+    for f in files:
+        img = load_image(f)
+        shape = (img > 127) if img[0, 0] < 128 else (img < 128)
+        _, hierarchy = cv2.findContours(shape.astype(np.uint8), cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE)
+        holes += int((hierarchy[0][:, 3] >= 0).any())
+    assert holes >= 10  # about 3 in 10 instances have holes punched in
+
+
 def test_bullseye_convention():
     labels = ["a", "a", "b", "b"]
     perfect = np.array([[0, 1, 5, 5], [1, 0, 5, 5], [5, 5, 0, 1], [5, 5, 1, 0]], float)
@@ -60,6 +75,32 @@ def test_fourier_beats_chance_by_a_wide_margin(silhouettes, capsys):
     for r in rows.values():
         assert r["bullseye_percent"] > chance
         assert r["describe_us"] > 0 and r["distance_matrix_ns_per_pair"] > 0
+
+
+def test_hard_set_no_longer_reads_near_100_percent(tmp_path, capsys):
+    make_silhouettes(tmp_path, classes=12, per_class=10, seed=0, size=128)
+    assert main(["bench", "match", str(tmp_path), "--json", "--repeat", "1", "-q",
+                 "--matchers", "fourier,centroid-distance"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    for r in report["results"]:
+        assert report["chance_bullseye_percent"] + 30 < r["bullseye_percent"] < 90, r
+
+
+def test_several_sets_progress_and_comparisons(silhouettes, tmp_path, capsys):
+    made = tmp_path / "made"
+    assert main(["bench", "match", str(silhouettes), "--make", str(made), "--classes", "3", "--per-class", "3",
+                 "--size", "64", "--matchers", "fourier", "--repeat", "2", "--json"]) == 0
+    captured = capsys.readouterr()
+    sets = json.loads(captured.out)["sets"]
+    assert [s["shapes"] for s in sets] == [48, 9]
+    row = sets[0]["results"][0]
+    assert row["comparisons_per_second"] == pytest.approx(48 * 48 / row["distance_matrix_s"], rel=0.01)
+    assert 1 <= row["distance_matrix_runs"] <= 2
+    assert f"bench match: {silhouettes}: 48 shapes, 8 classes" in captured.err
+    assert "[1/1] fourier" in captured.err and "distance_matrix 48 x 48" in captured.err
+    assert main(["bench", "match", str(silhouettes), "--matchers", "fourier", "--repeat", "1", "-q"]) == 0
+    captured = capsys.readouterr()
+    assert captured.err == "" and "comparisons/s" in captured.out
 
 
 def test_table_output_and_make(tmp_path, capsys):

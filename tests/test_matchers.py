@@ -178,3 +178,14 @@ def test_hu_distance_is_opencv_i2_on_the_terms_opencv_keeps():
     expected = cv2.matchShapes(a, b, cv2.CONTOURS_MATCH_I2, 0)
     assert np.abs(da - db)[both].sum() == pytest.approx(expected, rel=1e-5)
     assert m.distance(da, db) >= expected
+
+
+def test_as_descriptors_checks_what_distance_matrix_gets():
+    from sbplan.model import as_descriptors
+
+    assert as_descriptors([1, 2, 3]).shape == (1, 3)
+    out = as_descriptors(np.arange(6).reshape(2, 3))
+    assert out.dtype == np.float64 and out.shape == (2, 3)
+    for bad, message in ((np.zeros((2, 2, 2)), "shape"), ([[1.0, np.inf]], "NaN or infinite"), ([["x"]], "numbers")):
+        with pytest.raises(InputError, match=message):
+            as_descriptors(bad, name="a")

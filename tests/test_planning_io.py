@@ -17,8 +17,8 @@ import shapely.affinity
 from shapely.geometry import LineString, box
 
 from sbplan.detection import exports as export
-from sbplan.errors import MapFormatError
-from sbplan.planning import PlanningMap, load_obstacles
+from sbplan.errors import InputError, MapFormatError
+from sbplan.planning import PlanningMap, detection_obstacles, load_obstacles
 from sbplan.planning.loaders import occupancy_rectangles
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -63,6 +63,26 @@ def test_detection_json_and_geojson_give_the_mars_and_the_bounds(detection_files
             assert min(p.hausdorff_distance(q) for q in want) < 2e-6
     outlines = load_obstacles(out / "result.json", use="outline").polygons
     assert shapely.union_all(outlines).area < shapely.union_all(want).area
+
+
+def test_a_detection_and_its_json_give_the_same_obstacles(detection_files):
+    out, det = detection_files
+    for use, key in (("mar", "mar_m"), ("outline", "outline_m")):
+        live = detection_obstacles(det, use=use)
+        assert [np.asarray(p.exterior.coords)[:-1].tolist() for p in live.polygons] == \
+            [getattr(ob, key).tolist() for ob in det.obstacles]
+        assert live.bounds == det.calibration.world_bounds()
+        stored = detection_obstacles(json.loads((out / "result.json").read_text()), use=use, source="result.json")
+        assert stored.bounds == pytest.approx(live.bounds, abs=1e-6) and stored.source == "result.json"
+        assert len(stored.polygons) == len(live.polygons)
+        for a, b in zip(stored.polygons, live.polygons):
+            assert a.hausdorff_distance(b) < 2e-6  # the JSON rounds to 1e-6 m
+        file = load_obstacles(out / "result.json", use=use)
+        assert [p.wkb for p in file.polygons] == [p.wkb for p in stored.polygons] and file.bounds == stored.bounds
+    with pytest.raises(MapFormatError, match="use"):
+        detection_obstacles(det, use="hull")
+    with pytest.raises(InputError, match="detection"):
+        detection_obstacles([np.zeros((4, 2))])
 
 
 def test_nav2_map_gives_exactly_the_occupied_cells(detection_files):

@@ -10,7 +10,6 @@ of at most _SCALAR_MAX_EDGES edges) and numpy (larger maps), which must agree.
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 import pytest
@@ -23,6 +22,7 @@ import sbplan
 from sbplan.errors import (GoalInObstacleError, NoRouteError, OutOfBoundsError, PlanningError,
                            StartInObstacleError)
 from sbplan.planning import PlanningMap, vismap
+from sbplan.planning.aux_corner import solve_checked
 
 from test_planning_exact import random_world
 
@@ -32,8 +32,7 @@ B = (0.0, 0.0, 100.0, 100.0)
 def full(pm: PlanningMap, s, g):
     """The answer of the full path (no fast path): a Route or the PlanningError class."""
     try:
-        return pm._solve_full(np.asarray(s, float), np.asarray(g, float), t0=time.perf_counter(),
-                              time_limit=10.0, planner="aux-corner")
+        return solve_checked(pm, np.asarray(s, float), np.asarray(g, float), time_limit=10.0)
     except PlanningError as e:
         return type(e)
 

@@ -203,3 +203,25 @@ def test_registration_can_be_switched_off(calibration):
     cells = Detector(calibration, register=False).find_cells(image)
     assert cells.camera.model == "none" and not cells.camera.moved
     assert CameraMotion.none().to_json()["model"] == "none"
+
+
+# -- large symbols: the working resolution ------------------------------------------------------------
+def test_large_symbols_are_worked_on_at_a_reduced_resolution_with_frame_pixel_results():
+    # a 4K-like view: few symbols ~120 px across (sqrt of area) -> frames reduced by 2
+    floor = FloorSpec(width=1600, height=1200, cols=4, rows=3)
+    cal = calibrate(render_reference(floor, seed=0))
+    assert cal.work_scale == 2
+    assert Calibration.from_json(json.loads(json.dumps(cal.to_json()))).work_scale == 2
+    image, truth = render_scene(floor, SceneSpec(n_obstacles=2, effects={"motion": (5.0, -3.0, 0.3, 1.004)}),
+                                seed=4)
+    detection = Detector(cal)(image)
+    assert score_cells(detection.occupied, truth.cells).f1 == 1.0
+    cam = detection.camera
+    assert abs(cam.shift_px[0] - 5.0) < 0.2 and abs(cam.shift_px[1] + 3.0) < 0.2 and abs(cam.rotation_deg - 0.3) < 0.02
+    # results are in full-resolution calibration pixels: obstacles lie inside the image and on
+    # the occupied cells' centres
+    for ob in detection.obstacles:
+        assert ob.outline_px[:, 0].max() <= floor.width and ob.outline_px[:, 1].max() <= floor.height
+        for r, c in ob.cells:
+            x, y = cal.grid.centres_px[r, c]
+            assert cv2.pointPolygonTest(ob.outline_px.astype(np.float32), (float(x), float(y)), False) >= 0

@@ -9,7 +9,7 @@ from typing import ClassVar, Sequence
 import numpy as np
 
 from sbplan.contours import as_points
-from sbplan.contracts import DescriptorMatcher, option
+from sbplan.contracts import DescriptorMatcher, as_descriptors, option
 from sbplan.errors import ContourError, InputError
 from sbplan.polygons import resample_complex
 
@@ -202,8 +202,8 @@ class FourierMatcher(DescriptorMatcher):
 
 def euclidean_matrix(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Pairwise Euclidean distances between the rows of a (n, K) and b (m, K): shape (n, m)."""
-    a = _descriptors(a, "a")
-    b = _descriptors(b, "b")
+    a = as_descriptors(a, name="a")
+    b = as_descriptors(b, name="b")
     if a.shape[1] != b.shape[1]:
         raise InputError(f"descriptor lengths differ: a has {a.shape[1]}, b has {b.shape[1]}")
     # The direct difference rather than |a|^2 + |b|^2 - 2ab: exact zero on identical rows and no
@@ -217,14 +217,3 @@ def euclidean_matrix(a: np.ndarray, b: np.ndarray) -> np.ndarray:
         d = a[i:i + step, None, :] - b[None, :, :]
         out[i:i + step] = np.sqrt(np.einsum("ijk,ijk->ij", d, d))
     return out
-
-
-def _descriptors(a, name: str) -> np.ndarray:
-    arr = np.asarray(a, dtype=np.float64)
-    if arr.ndim == 1:
-        arr = arr[None, :]
-    if arr.ndim != 2:
-        raise InputError(f"{name}: expected descriptors of shape (n, K), got {arr.shape}")
-    if not np.isfinite(arr).all():
-        raise InputError(f"{name}: descriptors contain NaN or infinite values")
-    return arr

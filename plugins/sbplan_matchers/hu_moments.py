@@ -9,11 +9,10 @@ import cv2
 import numpy as np
 
 from sbplan.contours import as_points
-from sbplan.contracts import DescriptorMatcher
+from sbplan.contracts import DescriptorMatcher, as_descriptors
 from sbplan.errors import ContourError, InputError
 from sbplan.polygons import pack
 
-from .fourier import _descriptors
 
 __all__ = ["HuMomentsMatcher", "hu_descriptors", "HU_EPS"]
 
@@ -84,8 +83,8 @@ class HuMomentsMatcher(DescriptorMatcher):
         return hu_descriptors(outlines)
 
     def distance_matrix(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        a = _descriptors(a, "a")
-        b = _descriptors(b, "b")
+        a = as_descriptors(a, name="a")
+        b = as_descriptors(b, name="b")
         if a.shape[1] != 7 or b.shape[1] != 7:
             raise InputError(f"Hu descriptors have 7 entries; got {a.shape[1]} and {b.shape[1]}")
         return np.abs(a[:, None, :] - b[None, :, :]).sum(axis=2)

@@ -1,5 +1,7 @@
 """OMPL's sampling-based planners as sbplan planner stages, on the same obstacles as aux-corner
-(exact motion validator, fresh optimization objective per solve)."""
+(exact motion validator, fresh optimization objective per solve): each a thin stage around
+``sbplan.planning.ompl_planners.solve_ompl``, as ``AuxCornerPlanner`` is around
+``solve_aux_corner``."""
 
 from __future__ import annotations
 
@@ -8,6 +10,7 @@ from typing import ClassVar
 
 from sbplan.contracts import Planner, option
 from sbplan.errors import InputError
+from sbplan.planning.route import Problem, Route
 
 
 @dataclass(kw_only=True, frozen=True)
@@ -19,7 +22,9 @@ class _OmplPlanner(Planner):
         if not isinstance(self.seed, int) or self.seed == 0 or self.seed < -1:
             raise InputError(f"option seed: expected an integer >= 1 (or -1), got {self.seed!r}")
 
-    def solve(self, problem, *, time_limit: float = 1.0):
+    def solve(self, problem: Problem, *, time_limit: float = 1.0) -> Route:
+        # Imported here, not at the top: importing OMPL costs ~30 ms, and building the stage
+        # registry (every sbplan command) must not pay it.
         from sbplan.planning.ompl_planners import solve_ompl
 
         return solve_ompl(problem.map, problem.start, problem.goal, self.name, time_limit=time_limit,

@@ -2,8 +2,11 @@
 
 A set is a folder of PNG files named ``<class>-<n>.png``: a white shape on black or a black shape
 on white. :func:`make_silhouettes` generates one from parametric shapes (random star-shaped
-polygons, stars, letter-like stroke shapes, smooth blobs); every instance of a class is its base
-shape under a random rotation, scale, shear and small vertex jitter, rasterized with OpenCV.
+polygons, stars, letter-like stroke shapes, smooth blobs, animals with bending limbs, and near
+copies of earlier classes); every instance of a class is its base shape under a random rotation,
+scale, shear, small vertex jitter and, now and then, a mirror flip, rasterized with OpenCV, and
+then given the hard cases of MPEG-7 CE-Shape-1: limbs bent at their joints, a part cut away
+(occlusion), a ragged boundary, holes.
 """
 
 from __future__ import annotations
@@ -20,7 +23,15 @@ from ..imageio import load_image, write_image
 
 __all__ = ["make_silhouettes", "load_silhouettes", "largest_outline", "Silhouettes", "FAMILIES"]
 
-FAMILIES = ("polygon", "star", "letter", "blob")
+FAMILIES = ("polygon", "star", "letter", "blob", "animal", "sibling")
+
+#: How often an instance gets each hard case (independently), and how strong it is.
+HARD_CASES = {
+    "mirror": 0.25,     # flipped left to right, as MPEG-7's classes mix facing directions
+    "occlusion": 0.25,  # a disc of 0.35-0.6 radii centred near the boundary cut away
+    "ragged": 0.3,      # 6-14 small discs added or removed along the boundary
+    "holes": 0.3,       # 1-3 holes punched inside (the outer contour is what is matched)
+}
 
 #: Letter-like stroke skeletons on a unit box (y down); each is a list of polylines.
 _LETTERS = {
@@ -62,15 +73,27 @@ def _class_specs(classes: int, rng: np.random.Generator) -> list[_ClassSpec]:
         elif family == "letter":
             params = {"letter": letters[(i // len(FAMILIES)) % len(letters)],
                       "thickness": float(rng.uniform(0.14, 0.24))}
-        else:
+        elif family == "blob":
             k = np.arange(2, 6)
             params = {"amp": rng.uniform(0.0, 0.18, len(k)) / (k - 1) ** 0.5, "phase": rng.uniform(0, 2 * np.pi, len(k)), "k": k}
+        elif family == "animal":
+            limbs = int(rng.integers(2, 6))
+            params = {"aspect": float(rng.uniform(0.35, 0.7)),
+                      "anchors": np.sort(rng.uniform(0, 2 * np.pi, limbs)),
+                      "lengths": rng.uniform(0.3, 0.6, (limbs, 2)),
+                      "bends": rng.uniform(-0.6, 0.6, limbs),
+                      "thickness": float(rng.uniform(0.12, 0.2))}
+        else:  # a near copy of an earlier class: the MPEG-7 case of two classes that look alike
+            bases = [sp for sp in specs if sp.family != "sibling"]
+            base = bases[int(rng.integers(0, len(bases)))]
+            params = {"base": base, "bump_at": float(rng.uniform(0, 2 * np.pi)), "bump": float(rng.uniform(0.25, 0.4))}
         specs.append(_ClassSpec(name, family, params))
     return specs
 
 
 def _base_outline(spec: _ClassSpec) -> np.ndarray | None:
-    """The class's outline (N, 2) centred on (0, 0) with radius about 1, or None for letters."""
+    """The class's outline (N, 2) centred on (0, 0) with radius about 1, or None for letters and
+    animals (drawn as strokes)."""
     p = spec.params
     if spec.family == "polygon":
         return np.c_[p["radii"] * np.cos(p["angles"]), p["radii"] * np.sin(p["angles"])]
@@ -86,8 +109,50 @@ def _base_outline(spec: _ClassSpec) -> np.ndarray | None:
     return None
 
 
+def _strokes(spec: _ClassSpec, rng: np.random.Generator) -> tuple[list[np.ndarray], float, np.ndarray | None]:
+    """The class's strokes for one instance: polylines (N_i, 2) centred on (0, 0) with radius
+    about 1 (y down), their thickness in the same unit, and a filled body outline or None.
+    Animals' limbs bend at both joints by up to +-35 degrees from one instance to the next."""
+    p = spec.params
+    if spec.family == "letter":
+        lines = [(np.asarray(line, float) - (0.4, 0.5) + rng.normal(0, 0.02, (len(line), 2))) * 1.6
+                 for line in _LETTERS[p["letter"]]]
+        return lines, p["thickness"] * 1.6, None
+    t = np.linspace(0, 2 * np.pi, 60, endpoint=False)
+    a, b = 0.55, 0.55 * p["aspect"]
+    body = np.c_[a * np.cos(t), b * np.sin(t)] + rng.normal(0, 0.01, (len(t), 2))
+    lines = []
+    for ang, (l1, l2), bend in zip(p["anchors"], p["lengths"], p["bends"]):
+        root = 0.8 * np.array([a * np.cos(ang), b * np.sin(ang)])
+        d1 = ang + rng.uniform(-0.6, 0.6)
+        knee = root + 0.6 * l1 * np.array([np.cos(d1), np.sin(d1)])
+        d2 = d1 + bend + rng.uniform(-0.6, 0.6)
+        foot = knee + 0.6 * l2 * np.array([np.cos(d2), np.sin(d2)])
+        lines.append(np.array([root, knee, foot]) * 0.85)
+    return lines, p["thickness"] * 0.85, body * 0.85
+
+
 def _render(spec: _ClassSpec, size: int, rng: np.random.Generator) -> np.ndarray:
-    """One random instance of a class as a binary uint8 image (255 = shape)."""
+    """One random instance of a class as a binary uint8 image (255 = shape), hard cases included."""
+    if spec.family == "sibling":
+        img = _render_sibling(spec, size, rng)
+    else:
+        img = _render_plain(spec, size, rng)
+    return _hard_cases(img, size, rng)
+
+
+def _render_sibling(spec: _ClassSpec, size: int, rng: np.random.Generator) -> np.ndarray:
+    """The base class's instance with a bump grown at a fixed place of its outline: the two
+    classes differ in that one part only."""
+    p = spec.params
+    base = p["base"]
+    # the bump is placed in the base's own frame, before the instance's rotation and scale
+    return _render_plain(base, size, rng, bump=(p["bump_at"], p["bump"]))
+
+
+def _render_plain(spec: _ClassSpec, size: int, rng: np.random.Generator, *,
+                  bump: tuple[float, float] | None = None) -> np.ndarray:
+    """One instance of a class before the hard cases: rotation, scale, shear, stretch, jitter."""
     angle = rng.uniform(0, 2 * np.pi)
     scale = size * rng.uniform(0.28, 0.42)
     shear = rng.uniform(-0.08, 0.08)
@@ -95,19 +160,58 @@ def _render(spec: _ClassSpec, size: int, rng: np.random.Generator) -> np.ndarray
     c, s = np.cos(angle), np.sin(angle)
     affine = np.array([[c, -s], [s, c]]) @ np.array([[stretch, shear], [0.0, 1.0 / stretch]]) * scale
     centre = size / 2 + rng.uniform(-0.04, 0.04, 2) * size
+    if rng.random() < HARD_CASES["mirror"]:
+        affine = affine @ np.diag([-1.0, 1.0])
     img = np.zeros((size, size), np.uint8)
     outline = _base_outline(spec)
     if outline is not None:
         jitter = rng.normal(0, 0.02, outline.shape)  # small non-rigid perturbation
         pts = (outline + jitter) @ affine.T + centre
         cv2.fillPoly(img, [np.round(pts * 16).astype(np.int32)], 255, lineType=cv2.LINE_8, shift=4)
+    else:
+        lines, thickness, body = _strokes(spec, rng)
+        thick = max(2, int(round(thickness * scale)))
+        if body is not None:
+            q = body @ affine.T + centre
+            cv2.fillPoly(img, [np.round(q * 16).astype(np.int32)], 255, lineType=cv2.LINE_8, shift=4)
+        for line in lines:
+            q = line @ affine.T + centre
+            cv2.polylines(img, [np.round(q * 16).astype(np.int32)], False, 255, thick, cv2.LINE_8, shift=4)
+    if bump is not None:
+        at, radius = bump
+        # centred on the shape's farthest pixel in the direction `at` of the base shape's frame,
+        # so it sits at the same place of every instance and always joins the shape
+        ys, xs = np.nonzero(img)
+        if len(xs):
+            k = int(np.argmax((np.c_[xs, ys] - centre) @ (affine @ np.array([np.cos(at), np.sin(at)]))))
+            cv2.circle(img, (int(xs[k]), int(ys[k])), max(2, int(round(radius * scale * 0.5))), 255, -1)
+    return img
+
+
+def _hard_cases(img: np.ndarray, size: int, rng: np.random.Generator) -> np.ndarray:
+    """Occlusion, a ragged boundary and holes (see :data:`HARD_CASES`), each drawn at random."""
+    area = int(np.count_nonzero(img))
+    if area == 0:
         return img
-    strokes = _LETTERS[spec.params["letter"]]
-    thick = max(2, int(round(spec.params["thickness"] * scale * 1.6)))
-    for line in strokes:
-        q = np.asarray(line, float) - (0.4, 0.5)
-        q = (q + rng.normal(0, 0.02, q.shape)) * 1.6 @ affine.T + centre
-        cv2.polylines(img, [np.round(q * 16).astype(np.int32)], False, 255, thick, cv2.LINE_8, shift=4)
+    radius = float(np.sqrt(area / np.pi))  # of the disc of the shape's area
+    edge = np.argwhere(cv2.morphologyEx(img, cv2.MORPH_GRADIENT, np.ones((3, 3), np.uint8)) > 0)[:, ::-1]
+    if rng.random() < HARD_CASES["occlusion"] and len(edge):
+        at = edge[int(rng.integers(len(edge)))]
+        cut = img.copy()
+        cv2.circle(cut, (int(at[0]), int(at[1])), int(round(rng.uniform(0.35, 0.6) * radius)), 0, -1)
+        if cut.sum() > 0.6 * img.sum():  # keep most of the shape: occluded, not replaced
+            img = cut
+    if rng.random() < HARD_CASES["ragged"] and len(edge):
+        for _ in range(int(rng.integers(6, 15))):
+            at = edge[int(rng.integers(len(edge)))]
+            r = max(1, int(round(rng.uniform(0.03, 0.08) * radius)))
+            cv2.circle(img, (int(at[0]), int(at[1])), r, int(255 * (rng.random() < 0.5)), -1)
+    if rng.random() < HARD_CASES["holes"]:
+        inner = cv2.erode(img, np.ones((5, 5), np.uint8), iterations=max(1, int(radius * 0.15)))
+        spots = np.argwhere(inner > 0)[:, ::-1]
+        for _ in range(int(rng.integers(1, 4)) if len(spots) else 0):
+            at = spots[int(rng.integers(len(spots)))]
+            cv2.circle(img, (int(at[0]), int(at[1])), max(1, int(round(rng.uniform(0.05, 0.12) * radius))), 0, -1)
     return img
 
 

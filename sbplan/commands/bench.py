@@ -13,6 +13,7 @@ BENCHMARKS: dict[str, str] = {
     "match": "sbplan.bench.match",
     "detect": "sbplan.bench.detect",
     "plan": "sbplan.bench.plan",
+    "serve": "sbplan.bench.serve",
 }
 
 

@@ -63,13 +63,13 @@ def run(args: argparse.Namespace) -> int:
     exports.write_nav2(out / "nav2", detection)
     ws = cal.workspace
     if ws.start_m and ws.goal_m:
-        from ..planning import plan
+        from ..planning import detection_obstacles, plan
         from ..planning.ompl_planners import quiet
 
         quiet(bool(getattr(args, "verbose", False)))  # OMPL's log only with -v
-        obstacles = [ob.mar_m for ob in detection.obstacles]
-        route = plan(obstacles, ws.start_m, ws.goal_m, robot_radius=ws.robot_radius_m, planner=args.planner,
-                     bounds=cal.world_bounds())
+        obstacles = detection_obstacles(detection)
+        route = plan(obstacles.polygons, ws.start_m, ws.goal_m, robot_radius=ws.robot_radius_m,
+                     planner=args.planner, bounds=obstacles.bounds)
         pts = " -> ".join(f"({x:.2f}, {y:.2f})" for x, y in route.waypoints)
         print(f"route ({route.planner}, {route.status}): {route.length:.3f} m in {route.time_s * 1e3:.2f} ms")
         print(f"  {pts}")

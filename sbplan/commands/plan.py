@@ -40,17 +40,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..imageio import write_image
-    from ..planning import load_obstacles, plan
+    from ..planning import PlanningMap, load_obstacles, plan
     from ..planning.ompl_planners import quiet
 
     quiet(bool(getattr(args, "verbose", False)))
     obs = load_obstacles(args.obstacles, resolution=args.resolution, use=args.use)
-    route = plan(obs.polygons, args.start, args.goal, robot_radius=args.radius, margin=args.margin,
-                 planner=args.planner, bounds=obs.bounds, time_limit=args.time_limit)
+    pm = PlanningMap(obs.polygons, robot_radius=args.radius, margin=args.margin, bounds=obs.bounds,
+                     include=(args.start, args.goal))
+    route = plan(pm, args.start, args.goal, planner=args.planner, time_limit=args.time_limit)
     if args.plot:
         from ..planning.plot import draw_route
 
-        pm = route.map  # the map plan() built: obstacles, their enlargement, bounds
         write_image(args.plot, draw_route(pm.obstacles, pm.enlarged, pm.bounds, route=route.waypoints,
                                           start=args.start, goal=args.goal))
     if args.json:

@@ -23,11 +23,12 @@ from .bands import RowBands
 from .calibration.file import Calibration, load_calibration
 from .calibration.shapes import length_filter_steps
 from .obstacles import find_obstacles
-from .outline_checks import (EDGE_SAMPLES, EDGE_SCRATCH_POINTS, EDGE_UNPROBED, INNER_MARGIN_PX, SAMPLES, edge_factors, edge_kept,
+from .outline_checks import (EDGE_DEPTH_PX, EDGE_SAMPLES, EDGE_UNPROBED, scratch_points, INNER_MARGIN_PX, SAMPLES, edge_factors, edge_kept,
                              edge_probes, hidden_piece, intact_edges, reference_samples, samples_deviation,
                              scratches_repaired, signed_distance_map)
 from .registration import MIN_SYMBOLS, CameraMotion, apply, centre_window, grey_centres, refine, register_pairs
 from .result import CellDetection, Detection
+from .working import WorkScale
 
 log = logging.getLogger(__name__)
 
@@ -89,11 +90,15 @@ class Detector:
         # them in (calibrated per point) plus a margin: a found symbol must cover them all
         self.ref_points, self.inward = reference_samples(cal.symbol_polygons)
         tol = cal.inner_tolerance_px if cal.inner_tolerance_px is not None else cal.outline_tolerance_px
-        self.allowance = np.broadcast_to(tol, self.ref_points.shape[:2]) + INNER_MARGIN_PX
+        # (the margin is for the binary image's pixels: in frame pixels it grows with the working factor)
+        self.allowance = np.broadcast_to(tol, self.ref_points.shape[:2]) + INNER_MARGIN_PX * cal.work_scale
         # Symbols only appear in the rows where the reference showed them, moved as the camera
         # moved; when those rows are a clear part of the frame, the per-pixel work is limited to
         # them (sbplan.detection.bands), laid out for the camera's last known pose (self._bands_for).
         self._row_bands = bool(row_bands and cal.symbol_polygons)
+        # frames are reduced by the calibration's working factor before their contours are traced
+        # (sbplan.detection.working); bands, binary image and contours are in working pixels
+        self.work = WorkScale(cal.work_scale, cal.image_shape)
         self._band_margin = max(BAND_MARGIN_PX, BAND_MARGIN * float(np.sqrt(np.median(areas)))) if len(areas) else 0.0
         # each symbol's bounding box corners, whose rows the bands must hold (cell, 4 corners, xy)
         self._symbol_corners = np.array([[[p[:, 0].min(), p[:, 1].min()], [p[:, 0].max(), p[:, 1].min()],
@@ -108,7 +113,8 @@ class Detector:
         # what the frames' grey-level centres are compared with, by flat cell number
         self._registration_centres = (cal.registration_centres_px if cal.registration_centres_px is not None
                                       else cal.grid.centres_px).reshape(-1, 2)
-        self._centre_window = centre_window(cal.symbol_polygons) if cal.symbol_polygons else 0
+        self._centre_window = (centre_window([self.work.to_work(p) for p in cal.symbol_polygons])
+                               if cal.symbol_polygons else 0)
         # the length filter's bounds, checked once (length_filter raises on bad ones)
         length_filter_steps([], cal.symbol_points_range)
         self._points_range = (float(cal.symbol_points_range[0]), float(cal.symbol_points_range[1]))
@@ -119,8 +125,12 @@ class Detector:
         n_cells = len(cal.symbol_polygons)
         self._edge_x = self._edge_y = self._edge_factors = None
         if cal.edge_contrast is not None and np.shape(cal.edge_contrast) == (n_cells, EDGE_SAMPLES) and n_cells:
-            self._edge_x, self._edge_y = edge_probes(cal.symbol_polygons)
+            # (outlines traced in a reduced image lie up to a reduced pixel inside the ink's edge:
+            # the probes reach as much farther)
+            self._edge_x, self._edge_y = edge_probes(cal.symbol_polygons, EDGE_DEPTH_PX * cal.work_scale)
             self._edge_factors = edge_factors(cal.edge_contrast)
+            # how many edge points in a row a scratch may break, per cell (its points' spacing)
+            self._scratch_points, self._break_gap = scratch_points(cal.symbol_polygons)
             self._cell_centres = centroids(cal.symbol_polygons)
         self.stage_names = {"binarizer": self.binarizer.name, "extractor": self.extractor.name,
                             "approximator": self.approximator.name, "matcher": self.matcher.name,
@@ -140,8 +150,8 @@ class Detector:
         if cached is not None and np.abs(apply(cached[0], self._symbol_corners[:, 0]) -
                                          apply(matrix, self._symbol_corners[:, 0])).max() < 1.0:
             return cached[1]
-        corners = apply(matrix, self._symbol_corners)
-        bands = RowBands.around(list(corners), self.calibration.image_shape, margin=self._band_margin)
+        corners = self.work.to_work(apply(matrix, self._symbol_corners))
+        bands = RowBands.around(list(corners), self.work.work_shape, margin=self._band_margin / self.work.factor)
         bands = bands if bands.fraction <= BANDS_WORTH_IT else None
         self._bands_cache = (matrix, bands)
         return bands
@@ -150,7 +160,7 @@ class Detector:
         """Do ``bands`` hold every symbol's rows, with a few rows to spare, where ``motion`` puts them?"""
         if bands is None:
             return True
-        y = apply(motion.matrix, self._symbol_corners)[..., 1]
+        y = self.work.to_work(apply(motion.matrix, self._symbol_corners))[..., 1]
         lo, hi = y.min(axis=1) - BAND_SPARE_PX, y.max(axis=1) + BAND_SPARE_PX
         band = np.searchsorted(bands.starts, lo, side="right") - 1
         ok = band >= 0
@@ -206,7 +216,8 @@ class Detector:
             # the camera moved beyond the bands laid out for the last pose: lay them out again
             bands = self._bands_for(motion.matrix)
         self.motion = motion
-        binary, polygons, hit, centres, areas = frame
+        binary, polygons, hit, centres, areas, _, _ = frame
+        work = self.work
         rows, cols = cal.grid.shape
         found = np.zeros((rows, cols), bool)
         matched = np.zeros((0, 2))
@@ -234,6 +245,7 @@ class Detector:
                 xy = np.stack([z.real, z.imag], axis=-1).reshape(-1, 2)
                 if bands is not None:
                     xy = bands.to_full(xy)
+                xy = work.to_frame(xy)
                 if moved:
                     xy = motion.to_calibration(xy)
                 xy = xy.reshape(len(picked), SAMPLES, 2)
@@ -253,10 +265,12 @@ class Detector:
                         points = motion.to_frame(points)
                         lin = motion.matrix[:2, :2] / motion.scale
                         inward = inward @ lin.T
+                    points = work.to_work(points)
                     if bands is not None:
                         points = bands.to_stacked(points.reshape(-1, 2)).reshape(points.shape)
-                    hidden = hidden_piece(_Picked(polygons, picked), shift, points, inward,
-                                          self.allowance[cell] * motion.scale, binary)
+                    # the binary image and the outlines are in working pixels
+                    hidden = hidden_piece(_Picked(polygons, picked), shift / work.factor, points, inward,
+                                          self.allowance[cell] * (motion.scale / work.factor), binary)
                     if hidden.any():
                         idx = idx[~hidden]
             found.ravel()[flat[idx]] = True
@@ -273,7 +287,8 @@ class Detector:
                 ex, ey = q[..., 0].astype(np.float32), q[..., 1].astype(np.float32)
             factors = self._edge_factors[missing]
             kept = edge_kept(gray, ex, ey, factors)
-            intact = intact_edges(kept, max_break=EDGE_SCRATCH_POINTS, probed=factors < EDGE_UNPROBED)
+            limit, gap = self._scratch_points[missing], self._break_gap[missing]
+            intact = intact_edges(kept, max_break=limit, gap=gap, probed=factors < EDGE_UNPROBED)
             # ... or shows it once the thin scratches across it are painted over (wear), asked of
             # a few cells only: an obstacle over a symbol breaks much of its edge, scratches a few
             # points, and a floor that is mostly occupied is not worn symbols
@@ -284,7 +299,7 @@ class Detector:
                     outlines = [motion.to_frame(o) for o in outlines]
                 intact[broken] = scratches_repaired(gray, outlines, ex[broken], ey[broken],
                                                     self._edge_factors[missing[broken]],
-                                                    max_break=EDGE_SCRATCH_POINTS)
+                                                    max_break=limit[broken], gap=gap[broken])
             whole = missing[intact]
             if len(whole):
                 found.ravel()[whole] = True
@@ -296,10 +311,12 @@ class Detector:
         return CellDetection(~found, int(found.sum()), matched, candidates, timings, gray.shape, motion)
 
     def _symbols(self, gray: np.ndarray, bands: RowBands | None, lap) -> tuple:
-        """Binarize, extract, approximate and match one frame: the binary image, the polygons,
-        the indices of those the matcher took for the symbol, their centres in the frame's pixels
-        and their areas."""
-        binary = self.binarizer.binarize_bands(gray, bands) if bands is not None else self.binarizer.binarize(gray)
+        """Binarize, extract, approximate and match one frame (at the working resolution): the
+        binary image, the polygons, the indices of those the matcher took for the symbol, their
+        centres and areas in the frame's pixels, their centres in working pixels, and the working
+        image."""
+        image = self.work.reduce(gray)
+        binary = self.binarizer.binarize_bands(image, bands) if bands is not None else self.binarizer.binarize(image)
         lap("binarize")
         outer = self.extractor.extract_outer(binary)
         lap("extract")
@@ -324,17 +341,19 @@ class Detector:
                 if bands is not None:
                     centres = bands.to_full(centres)
         lap("describe")
-        return binary, polygons, hit, centres, areas
+        return binary, polygons, hit, self.work.to_frame(centres), areas * self.work.area, centres, image
 
     def _registered(self, gray: np.ndarray, frame: tuple, hint: CameraMotion, bands: RowBands | None) -> CameraMotion:
         """The camera's movement since calibration, from the symbols of ``frame``: a coarse fit on
         the outlines' centres, then the inliers' grey-level centres (sub-pixel) refitted."""
         if not self.register:
             return CameraMotion.none()
-        binary, polygons, hit, centres, areas = frame
+        binary, polygons, hit, centres, areas, work_centres, image = frame
         cal = self.calibration
+        # (the frame's texture is compared at a quarter of the calibration's size: the working
+        # image gets there with fewer halvings)
         coarse, cells = register_pairs(centres, cal.grid, cal.image_shape, hint=hint.matrix,
-                                       reference_thumbnail=cal.reference_thumbnail, frame=gray)
+                                       reference_thumbnail=cal.reference_thumbnail, frame=image)
         take = np.flatnonzero(cells >= 0)
         if coarse.model == "assumed" or len(take) < MIN_SYMBOLS:
             return coarse
@@ -342,13 +361,15 @@ class Detector:
             # evenly over the grid's cells: a spread-out set pins rotation and scale
             take = take[np.argsort(cells[take], kind="stable")]
             take = take[np.linspace(0, len(take) - 1, REGISTRATION_SYMBOLS).round().astype(np.int64)]
-        fine = grey_centres(gray, self._boxes(polygons, hit[take], centres[take], bands), self._centre_window)
+        # sub-pixel centres, measured in the working image as calibration measured the reference's
+        boxes = self._boxes(polygons, hit[take], work_centres[take], bands)
+        fine = self.work.to_frame(grey_centres(image, boxes, self._centre_window))
         return refine(fine, cells[take], self._registration_centres, cal.grid, cal.image_shape, coarse)
 
     def _boxes(self, polygons: PolygonBatch, picked: np.ndarray, centres: np.ndarray,
                bands: RowBands | None) -> np.ndarray:
-        """Bounding boxes ``(x0, y0, x1, y1)`` in the frame's pixels of the polygons ``picked``, whose
-        centres in the frame are ``centres``."""
+        """Bounding boxes ``(x0, y0, x1, y1)`` in working pixels of the polygons ``picked``, whose
+        centres in working pixels are ``centres``."""
         lo = np.minimum.reduceat(polygons.points, polygons.starts, axis=0)[picked]
         hi = np.maximum.reduceat(polygons.points, polygons.starts, axis=0)[picked]
         if bands is not None:

@@ -177,7 +177,13 @@ def write_nav2(folder: str | os.PathLike, detection: Detection, *, resolution: f
     folder = Path(folder)
     image, meta = nav2_map(detection, resolution=resolution)
     write_image(folder / meta["image"], image, text={"sbplan": "nav2-map", "Description": NAV2_IMAGE_NOTE})
+    return write_atomic(folder / "map.yaml", nav2_yaml(meta))
+
+
+def nav2_yaml(meta: dict) -> str:
+    """The text of ``map.yaml`` for :func:`nav2_map`'s fields."""
     lines = [f"image: {meta['image']}", f"mode: {meta['mode']}", f"resolution: {meta['resolution']:.6g}",
              "origin: [{:.6g}, {:.6g}, {:.6g}]".format(*meta["origin"]), f"negate: {meta['negate']}",
              f"occupied_thresh: {meta['occupied_thresh']}", f"free_thresh: {meta['free_thresh']}"]
-    return write_atomic(folder / "map.yaml", "\n".join(lines) + "\n")
+    return "\n".join(lines) + "\n"
+

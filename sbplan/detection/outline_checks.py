@@ -268,16 +268,37 @@ EDGE_MIN_REFERENCE = 0.25
 #: <= 0.17); 0.5 would leave one free symbol of seed 11 called occupied.
 EDGE_KEEP = 0.4
 
-#: Broken runs of the edge at most this many kept points apart count as one break.
-EDGE_BREAK_GAP = 3
+#: Broken runs of the edge at most this far apart (pixels of outline: 3 points on the suite's
+#: 1280 x 960 symbols) count as one break, and an outline with more than EDGE_MAX_BREAKS breaks
+#: is not forgiven.
+EDGE_BREAK_GAP_PX = 5.2
+EDGE_MAX_BREAKS = 4
 
 #: The factor of a point not probed (any inside level passes where the outside is not black).
 EDGE_UNPROBED = 256
 
-#: Consecutive edge points (about 2 px apart) a thin scratch of floor colour may break where it
-#: crosses a symbol's outline (1 to 3 px wide, crossing at 45 degrees or more) without the cell
-#: being called occupied; an obstacle over 2 % of a symbol breaks a longer run of its outline.
+#: The length of outline (pixels) a thin scratch of floor colour may break where it crosses a
+#: symbol's outline (1 to 3 px wide, crossing at 25 degrees or more) without the cell being called
+#: occupied: 4 edge points on the suite's 1280 x 960 symbols (points 1.7 px apart); an obstacle over
+#: 2 % of such a symbol broke 8 points or more. On larger symbols the points lie farther apart and
+#: fewer of them are forgiven (scratches do not grow with the symbols), never more than 4.
+EDGE_SCRATCH_PX = 7.0
 EDGE_SCRATCH_POINTS = 4
+
+
+def scratch_points(polygons: list[np.ndarray], samples: int = EDGE_SAMPLES) -> tuple[np.ndarray, np.ndarray]:
+    """Per outline, how many consecutive edge points a scratch may break (:data:`EDGE_SCRATCH_PX`
+    over the points' spacing, at least 1, at most :data:`EDGE_SCRATCH_POINTS`), and how many kept
+    points apart two broken runs are one break (:data:`EDGE_BREAK_GAP_PX` over the spacing, at
+    least 1). Two int arrays of shape (n,)."""
+    if not len(polygons):
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    perimeters = np.array([np.linalg.norm(np.diff(np.vstack([p, p[:1]]), axis=0), axis=1).sum()
+                           for p in polygons])
+    spacing = np.maximum(perimeters / samples, 1e-6)
+    limit = np.clip(np.floor(EDGE_SCRATCH_PX / spacing + 0.5), 1, EDGE_SCRATCH_POINTS).astype(np.int64)
+    gap = np.clip(np.floor(EDGE_BREAK_GAP_PX / spacing + 0.5), 1, None).astype(np.int64)
+    return limit, gap
 
 
 def edge_probes(polygons: list[np.ndarray], depth: float = EDGE_DEPTH_PX,
@@ -346,19 +367,27 @@ def edge_kept(gray: np.ndarray, x: np.ndarray, y: np.ndarray, factors: np.ndarra
     return v[:, 0] < v[:, 1] * factors
 
 
-def intact_edges(kept: np.ndarray, *, max_break: int = 0, probed: np.ndarray | None = None) -> np.ndarray:
+def intact_edges(kept: np.ndarray, *, max_break: int | np.ndarray = 0, probed: np.ndarray | None = None,
+                 gap: int | np.ndarray = 3) -> np.ndarray:
     """Which outlines show their edge all around, from :func:`edge_kept` (n, S).
 
-    With ``max_break`` > 0, runs of at most that many consecutive broken points (around the closed
-    outline) are forgiven: where a thin scratch of floor colour crosses the outline the step is
+    With ``max_break`` > 0 (a number, or one per outline, shape (n,)), runs of at most that many
+    consecutive broken points (around the closed outline) are forgiven: where a thin scratch of floor colour crosses the outline the step is
     gone over its width only, while an obstacle over a real part of the outline breaks a longer run.
     Runs are counted over the ``probed`` points only (n, S; default all): an obstacle over an acute
-    tip, whose points are not probed, breaks the probed points on both sides of it, one run.
+    tip, whose points are not probed, breaks the probed points on both sides of it, one run; and
+    runs at most ``gap`` kept points apart (a number or one per outline) are one break.
     Shape (n,), bool.
     """
     intact = kept.all(axis=1)
-    if max_break > 0 and not intact.all():
-        for i in np.flatnonzero(~intact):
+    limit = np.broadcast_to(np.asarray(max_break), intact.shape)
+    gaps = np.broadcast_to(np.asarray(gap), intact.shape)
+    if (limit > 0).any() and not intact.all():
+        # at most EDGE_MAX_BREAKS short breaks (two scratches cross an outline four times): an
+        # outline with more broken points than they can hold is not looked at point by point
+        counted = ~kept if probed is None else ~kept & probed
+        few = ~intact & (limit > 0) & (counted.sum(axis=1) <= limit * EDGE_MAX_BREAKS)
+        for i in np.flatnonzero(few):
             broken = ~kept[i] if probed is None else ~kept[i][probed[i]]
             if broken.all():
                 continue
@@ -369,14 +398,14 @@ def intact_edges(kept: np.ndarray, *, max_break: int = 0, probed: np.ndarray | N
             begins, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
             # runs a few kept points apart are one break (a striped surface over the outline
             # keeps the step here and there; a scratch crosses cleanly)
-            apart = begins[1:] - ends[:-1] > EDGE_BREAK_GAP
+            apart = begins[1:] - ends[:-1] > gaps[i]
             spans = ends[np.r_[np.flatnonzero(apart), len(ends) - 1]] - begins[np.r_[0, np.flatnonzero(apart) + 1]]
-            intact[i] = spans.max() <= max_break
+            intact[i] = len(spans) <= EDGE_MAX_BREAKS and spans.max() <= limit[i]
     return intact
 
 
 def edges_intact(gray: np.ndarray, x: np.ndarray, y: np.ndarray, factors: np.ndarray, *,
-                 max_break: int = 0) -> np.ndarray:
+                 max_break: int | np.ndarray = 0) -> np.ndarray:
     """Which outlines still show their edge all around: :func:`intact_edges` of :func:`edge_kept`.
 
     ``gray`` (H, W) uint8; ``x``, ``y`` (n, 2, S) from :func:`edge_probes`; ``factors`` (n, S)
@@ -399,7 +428,8 @@ SCRATCH_LEVEL = 0.3
 
 
 def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarray, y: np.ndarray,
-                       factors: np.ndarray, *, max_break: int = 0) -> np.ndarray:
+                       factors: np.ndarray, *, max_break: int | np.ndarray = 0,
+                       gap: int | np.ndarray = 3) -> np.ndarray:
     """:func:`edges_intact` after the thin scratches across each symbol are painted over.
 
     Wear scratches a printed symbol: a thin line of floor colour crosses the ink from edge to edge,
@@ -461,15 +491,19 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
         paint = scratch & (inside > 0)
         repaired[paint] = np.uint8(np.clip(np.median(v[0]), 0, 255))
         kept = edge_kept(repaired, x[i:i + 1] - x0, y[i:i + 1] - y0, factors[i:i + 1])
-        out[i] = intact_edges(kept, max_break=max_break, probed=factors[i:i + 1] < EDGE_UNPROBED)[0]
+        limit = np.broadcast_to(np.asarray(max_break), (len(outlines),))[i:i + 1]
+        gaps = np.broadcast_to(np.asarray(gap), (len(outlines),))[i:i + 1]
+        out[i] = intact_edges(kept, max_break=limit, gap=gaps, probed=factors[i:i + 1] < EDGE_UNPROBED)[0]
     return out
 
 
 #: A scratched symbol has at most this many thin bright lines over it, covering at most this
 #: share of its area, each with ink on both sides: a striped or labelled obstacle over the symbol
 #: has many lines, or lines with its own surface around them.
-SCRATCH_MAX_LINES = 2
-SCRATCH_MAX_AREA = 0.10
+SCRATCH_MAX_LINES = 3
+SCRATCH_MAX_AREA = 0.16
+#: ... the longest of them at least this part of the symbol's size across.
+SCRATCH_MIN_LENGTH = 0.6
 #: ... where "ink" is at most this part of the symbol's step above the ink's level (and nine in
 #: ten of the pixels beside the lines at most twice that), and the lines lie within this part of
 #: the step of the floor's level.
@@ -480,21 +514,31 @@ SCRATCH_FLOOR_LEVEL = 0.35
 def _scratch_like(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, levels: np.ndarray, step: float) -> bool:
     """Are the thin bright lines over a symbol scratches in its ink, not an obstacle's texture?
 
-    ``thin`` and ``inside`` (the reference outline's interior) are 0/1 masks over ``patch``;
-    ``levels`` the edge probes' grey levels (2, S), inside first; ``step`` the median ink-to-floor step.
+    A scratch is a long, floor-coloured line with ink on both sides; a striped or labelled
+    obstacle over the symbol makes many lines, short ones, or lines with its own surface around
+    them. ``thin`` and ``inside`` (the reference outline's interior) are 0/1 masks over
+    ``patch``; ``levels`` the edge probes' grey levels (2, S), inside first; ``step`` the median
+    ink-to-floor step.
     """
     over = (thin > 0) & (inside > 0)
-    if over.sum() > SCRATCH_MAX_AREA * max(int(inside.sum()), 1):
+    area = max(int(inside.sum()), 1)
+    if over.sum() > SCRATCH_MAX_AREA * area:
         return False
-    n, labels = cv2.connectedComponents(over.astype(np.uint8), connectivity=8)
-    if n - 1 > SCRATCH_MAX_LINES:
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(over.astype(np.uint8), connectivity=8)
+    if not 1 <= n - 1 <= SCRATCH_MAX_LINES:
         return False
-    # the lines are floor-coloured, and the pixels beside them, inside the symbol, ink
+    # the longest line runs across a good part of the symbol
+    extent = np.hypot(stats[1:, cv2.CC_STAT_WIDTH], stats[1:, cv2.CC_STAT_HEIGHT]).max()
+    if extent < SCRATCH_MIN_LENGTH * np.sqrt(area):
+        return False
+    # the lines are floor-coloured, and the pixels beside them, inside the symbol (away from its
+    # blurred edge), ink
     floor, ink = float(np.percentile(levels[1], 50)), float(np.percentile(levels[0], 25))
     if float(np.median(patch[over])) < floor - SCRATCH_FLOOR_LEVEL * step:
         return False
     near = cv2.dilate(thin, np.ones((7, 7), np.uint8)) > 0
-    beside = near & ~(cv2.dilate(thin, np.ones((3, 3), np.uint8)) > 0) & (inside > 0)
+    core = cv2.erode(inside, np.ones((5, 5), np.uint8)) > 0
+    beside = near & ~(cv2.dilate(thin, np.ones((3, 3), np.uint8)) > 0) & core
     if not beside.any():
         return False
     around = patch[beside].astype(np.float32)

@@ -409,8 +409,21 @@ def thumbnail(gray: np.ndarray) -> np.ndarray:
     """The grey image made :data:`THUMBNAIL_FACTOR` times smaller (area average): what calibration
     keeps of the reference to tell movements a pitch apart by the floor's own texture."""
     h, w = gray.shape
-    f = THUMBNAIL_FACTOR
-    return cv2.resize(gray, (max(1, w // f), max(1, h // f)), interpolation=cv2.INTER_AREA)
+    small = _reduced(gray, (max(1, h // THUMBNAIL_FACTOR), max(1, w // THUMBNAIL_FACTOR)))
+    return np.clip(np.rint(small), 0, 255).astype(np.uint8)
+
+
+def _reduced(gray: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """``gray`` reduced to ``shape`` (H, W) by area averaging, by halvings while it is at least
+    twice as large (OpenCV halves about ten times faster than it reduces by 4 at once), in float32
+    (rounding between halvings would blur the floor's faint texture). Returns float32."""
+    gray = gray.astype(np.float32)
+    while gray.shape[0] >= 2 * shape[0] and gray.shape[1] >= 2 * shape[1] \
+            and gray.shape[0] % 2 == 0 and gray.shape[1] % 2 == 0:
+        gray = cv2.resize(gray, (gray.shape[1] // 2, gray.shape[0] // 2), interpolation=cv2.INTER_AREA)
+    if gray.shape != tuple(shape):
+        gray = cv2.resize(gray, (shape[1], shape[0]), interpolation=cv2.INTER_AREA)
+    return gray
 
 
 def _texture(img: np.ndarray) -> np.ndarray:
@@ -424,7 +437,7 @@ def _view_scores(reference_thumb: np.ndarray, frame: np.ndarray, matrices: list[
     correlation over the floor between symbols, on thumbnails)."""
     f = THUMBNAIL_FACTOR
     th, tw = reference_thumb.shape
-    small = cv2.resize(frame, (tw, th), interpolation=cv2.INTER_AREA)
+    small = _reduced(frame, (th, tw))
     tex = _texture(small)
     # the floor between the symbols: the printed grid looks the same a pitch away, its floor does not
     ref = reference_thumb.astype(np.float32)
@@ -557,6 +570,7 @@ def grey_centres(gray: np.ndarray, boxes: np.ndarray, side: int) -> np.ndarray:
     inside = (x0 >= 0) & (y0 >= 0) & (x0 + side <= w) & (y0 + side <= h)
     if not inside.any():
         return out
+    # one copy of each window's rows (a fancy index per pixel costs 25 times more)
     win = np.lib.stride_tricks.sliding_window_view(gray, (side, side))[y0[inside], x0[inside]].astype(np.float32)
     ring = np.concatenate([win[:, 0, :], win[:, -1, :], win[:, 1:-1, 0], win[:, 1:-1, -1]], axis=1)
     floor = ring.mean(axis=1)

@@ -1,11 +1,12 @@
-"""Polygon preparation for the planners: validation and enlargement.
+"""Input preparation for the planners: point and polygon validation, enlargement.
 
 All points are world coordinates ``(x, y)`` (metres, or pixels with a scale), y up.
 """
 
 from __future__ import annotations
 
-from typing import Iterable, Sequence
+import math
+from typing import Any, Iterable, Sequence
 
 import numpy as np
 import shapely
@@ -18,6 +19,39 @@ from ..errors import InputError
 #: corners). A limit of 4 bevels only very sharp spikes; the result always contains the round
 #: buffer, so routes around it keep at least the requested clearance.
 MITRE_LIMIT = 4.0
+
+_F64 = np.dtype(float)
+
+
+def as_point(p: Any, name: str) -> tuple[np.ndarray, float, float]:
+    """Validate a point; return it as a float array of shape (2,) ``(x, y)`` and as two floats.
+
+    Raises InputError naming ``name`` unless ``p`` is a finite point ``(x, y)``.
+    """
+    if type(p) is np.ndarray and p.dtype is _F64 and p.shape == (2,):
+        a = p  # the common case, without asarray's and isfinite's call overhead
+    else:
+        try:
+            a = np.asarray(p, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            raise InputError(f"{name}: expected a point (x, y), got {p!r}") from None
+        if a.shape != (2,):
+            raise InputError(f"{name}: expected a finite point (x, y), got {p!r}")
+    x, y = a.tolist()
+    if not (math.isfinite(x) and math.isfinite(y)):
+        raise InputError(f"{name}: expected a finite point (x, y), got {p!r}")
+    return a, x, y
+
+
+def nonneg(v: Any, name: str) -> float:
+    """Validate a finite number >= 0 (a radius, a margin, a time limit); InputError naming ``name``."""
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        raise InputError(f"{name}: expected a number, got {v!r}") from None
+    if not math.isfinite(f) or f < 0:
+        raise InputError(f"{name}: must be a finite number >= 0, got {v!r}")
+    return f
 
 
 def as_polygons(obstacles: Iterable, *, name: str = "obstacles") -> list[Polygon]:

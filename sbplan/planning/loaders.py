@@ -20,7 +20,7 @@ import shapely.affinity
 import yaml
 from shapely.geometry import Polygon, box
 
-from ..errors import ImageError, MapFormatError
+from ..errors import ImageError, InputError, MapFormatError
 from ..imageio import as_gray, image_text, load_image
 from ..workspace import Georeference
 
@@ -69,7 +69,7 @@ def load_obstacles(path: Any, *, resolution: float | None = None, use: str = "ma
         if isinstance(data, dict) and data.get("type") == "FeatureCollection":
             return _from_geojson(data, str(p))
         if isinstance(data, dict) and str(data.get("format", "")).startswith("sbplan.detection"):
-            return _from_detection(data, str(p), use)
+            return detection_obstacles(data, use=use, source=str(p))
         raise MapFormatError(f"{p}: neither a GeoJSON FeatureCollection nor an sbplan detection result")
     if ext in (".yaml", ".yml"):
         return _from_nav2(p)
@@ -124,11 +124,43 @@ def _poly(coords: Any, where: str) -> Polygon:
     return Polygon(a)
 
 
-def _from_detection(data: dict, src: str, use: str) -> ObstacleSet:
+def detection_obstacles(detection: Any, *, use: str = "mar", source: str = "") -> ObstacleSet:
+    """The obstacles of a detection result, as the planner takes them: the one place that says
+    which polygons of a detection are obstacles (``sbplan demo``, the TUI and
+    :func:`load_obstacles` all come here).
+
+    Parameters
+    ----------
+    detection : Detection or dict
+        A :class:`sbplan.Detection`, or its JSON form (``Detection.to_json()``, the content of a
+        ``result.json``, whose coordinates are rounded to 1e-6 m).
+    use : "mar" | "outline"
+        Each obstacle's minimum-area rectangle (``mar_m``) or its outline (``outline_m``).
+    source : str
+        Where the detection came from, for messages and ``ObstacleSet.source``.
+
+    Returns
+    -------
+    ObstacleSet
+        The polygons in metres (world frame, y up) and the bounds of the calibrated grid.
+    """
     if use not in ("mar", "outline"):
         raise MapFormatError(f"use: expected 'mar' or 'outline', got {use!r}")
     key = "mar_m" if use == "mar" else "outline_m"
-    obs = data.get("obstacles")
+    src = source or "detection"
+    if not isinstance(detection, dict):
+        obstacles = getattr(detection, "obstacles", None)
+        calibration = getattr(detection, "calibration", None)
+        if obstacles is None or calibration is None:
+            raise InputError(f"detection: expected a Detection or its JSON, got {type(detection).__name__}")
+        polys = []
+        for i, ob in enumerate(obstacles):
+            pts = getattr(ob, key, None)
+            if pts is None:
+                raise InputError(f"{src}: obstacles[{i}] has no {key} (no world frame)")
+            polys.append(Polygon(pts))
+        return ObstacleSet(polys, tuple(float(v) for v in calibration.world_bounds()), source)
+    obs = detection.get("obstacles")
     if not isinstance(obs, list):
         raise MapFormatError(f"{src}: 'obstacles' must be a list")
     polys = []
@@ -136,8 +168,8 @@ def _from_detection(data: dict, src: str, use: str) -> ObstacleSet:
         if not isinstance(ob, dict) or key not in ob:
             raise MapFormatError(f"{src}: obstacles[{i}] has no {key!r}")
         polys.append(_poly(ob[key], f"{src}: obstacles[{i}].{key}"))
-    ws = data.get("workspace") or {}
-    return ObstacleSet(polys, _bounds(ws.get("bounds_m") if isinstance(ws, dict) else None, src), src)
+    ws = detection.get("workspace") or {}
+    return ObstacleSet(polys, _bounds(ws.get("bounds_m") if isinstance(ws, dict) else None, src), source)
 
 
 def _from_geojson(data: dict, src: str) -> ObstacleSet:

@@ -2,12 +2,15 @@
 the same obstacles with an exact motion validator, and the setup both share.
 
 OMPL objects are created per call and never kept in module globals (nanobind's leak warnings).
+OMPL's random number generator is one per process: :func:`solve_ompl` seeds it and solves under
+one lock, so seeded solves give the same route from any thread.
 """
 
 from __future__ import annotations
 
+import threading
 import time
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from ompl import base as ob
@@ -15,6 +18,10 @@ from ompl import geometric as og
 from ompl import util as ou
 
 from ..errors import InputError, NoRouteError, PlanningError
+from .route import Route
+
+if TYPE_CHECKING:
+    from .planning_map import PlanningMap
 
 #: Stage name -> OMPL geometric planner class name.
 OMPL_PLANNERS = {
@@ -30,6 +37,10 @@ OMPL_PLANNERS = {
 #: OMPL's console log during sbplan's solves: off unless ``quiet(verbose=True)`` asked for it (the
 #: CLI's -v). A plain flag, not an OMPL object (nanobind's leak warnings).
 _verbose = False
+
+#: Held from seeding OMPL's process-wide generator to the end of the solve. It costs no
+#: parallelism: OMPL's solve() keeps the GIL for its whole run anyway.
+_SOLVE_LOCK = threading.Lock()
 
 
 def quiet(verbose: bool = False) -> None:
@@ -127,31 +138,48 @@ def allocate(name: str, si: Any, pmap: Any) -> Any:
     return getattr(og, OMPL_PLANNERS[name])(si)
 
 
-def solve_ompl(pmap: Any, start: Any, goal: Any, name: str, *, time_limit: float, simplify: bool = True,
-               seed: int | None = None) -> Any:
-    """Plan with an OMPL planner on the map; return a Route (status exact or approximate)."""
-    from .api import Route
+def solve_ompl(pmap: PlanningMap, start: Any, goal: Any, name: str, *, time_limit: float, simplify: bool = True,
+               seed: int | None = None) -> Route:
+    """Plan with the OMPL planner ``name`` (a key of OMPL_PLANNERS, or ``aux-corner``) on the map.
 
+    Parameters
+    ----------
+    pmap : PlanningMap
+    start, goal : (x, y)
+    name : str
+    time_limit : float, seconds
+    simplify : bool
+        Shorten an exact solution with OMPL's simplifier.
+    seed : int, optional
+        Seed of OMPL's random number generator (default: not seeded).
+
+    Returns
+    -------
+    Route
+        ``status`` "approximate" when the start or goal had to step out of an obstacle's
+        clearance. An approximate OMPL solution (the goal not reached) raises PlanningError.
+    """
     t0 = time.perf_counter()
     s0, g0 = np.asarray(start, float), np.asarray(goal, float)
     s, s_esc = pmap.check_endpoint(s0, "start")
     g, g_esc = pmap.check_endpoint(g0, "goal")
-    ou.setLogLevel(ou.LOG_INFO if _verbose else ou.LOG_NONE)
-    if seed is not None:
-        ou.RNG.setSeed(int(seed))
-    ss = make_setup(pmap)
-    set_query(ss, s, g)
-    ss.setPlanner(allocate(name, ss.getSpaceInformation(), pmap))
-    status = ss.solve(float(time_limit))
-    exact = status == ob.PlannerStatus.EXACT_SOLUTION
-    approx = status == ob.PlannerStatus.APPROXIMATE_SOLUTION
-    if not (exact or approx):
-        raise NoRouteError(f"no route found by {name} within {time_limit:g} s (sampling planners cannot prove there is none)")
-    if simplify and exact:
-        ss.simplifySolution(0.0)
-    path = ss.getSolutionPath()
-    wp = np.array([[path.getState(i)[0], path.getState(i)[1]] for i in range(path.getStateCount())])
-    del path, ss
+    with _SOLVE_LOCK:
+        ou.setLogLevel(ou.LOG_INFO if _verbose else ou.LOG_NONE)
+        if seed is not None:
+            ou.RNG.setSeed(int(seed))
+        ss = make_setup(pmap)
+        set_query(ss, s, g)
+        ss.setPlanner(allocate(name, ss.getSpaceInformation(), pmap))
+        status = ss.solve(float(time_limit))
+        exact = status == ob.PlannerStatus.EXACT_SOLUTION
+        approx = status == ob.PlannerStatus.APPROXIMATE_SOLUTION
+        if not (exact or approx):
+            raise NoRouteError(f"no route found by {name} within {time_limit:g} s (sampling planners cannot prove there is none)")
+        if simplify and exact:
+            ss.simplifySolution(0.0)
+        path = ss.getSolutionPath()
+        wp = np.array([[path.getState(i)[0], path.getState(i)[1]] for i in range(path.getStateCount())])
+        del path, ss
     if approx:
         end = wp[-1]
         raise PlanningError(f"{name} reached only ({end[0]:g}, {end[1]:g}), not the goal, within {time_limit:g} s")

@@ -7,8 +7,10 @@ margin + tolerance); a point is free when it is outside or on the boundary of ev
 
 from __future__ import annotations
 
+import copy
 import heapq
 import math
+import threading
 from typing import Sequence
 
 import numpy as np
@@ -50,11 +52,21 @@ class VisibilityMap:
         The workspace; corners outside it are dropped (exact for a rectangular workspace).
     eps : float
         Geometric tolerance in map units (lengths); angles and areas are scaled from it.
+
+    Notes
+    -----
+    Threads: queries (``shortest_path``, ``straight_check``, ``segment_free``, ``covered``) may run
+    from several threads at once. The search fills the visibility cache under the map's lock, and
+    ``copy`` reads it under the same lock, so a copy never holds half of a cache update.
+    ``add_obstacles`` changes the map: do not call it while other threads query this map (replan
+    adds obstacles to a copy). ``stats`` are counters for tests and benchmarks; the one-segment
+    tests update them without the lock, so concurrent queries may lose counts.
     """
 
     def __init__(self, polygons: Sequence[Polygon], bounds: Sequence[float], *, eps: float):
         self.bounds = tuple(float(b) for b in bounds)
         self.eps = float(eps)
+        self._lock = threading.Lock()
         self.polygons: list[Polygon] = []
         ea = np.zeros((0, 2))
         self._ea, self._eb, self._vp = ea, ea, ea
@@ -75,6 +87,26 @@ class VisibilityMap:
         """The active auxiliary corners, shape (C, 2) ``(x, y)``."""
         return self._cp[self._cactive]
 
+    @property
+    def tree(self) -> shapely.STRtree:
+        """The spatial index of ``polygons`` (a shapely STRtree; its query results index
+        ``polygons``). Rebuilt, never modified, when obstacles are added: do not modify it."""
+        return self._tree
+
+    def copy(self) -> "VisibilityMap":
+        """An independent copy with the same visibility cache (copied, not recomputed): adding
+        obstacles to either leaves the other as it was."""
+        with self._lock:
+            new = copy.copy(self)
+            # What add_obstacles and the search change in place; every other array is replaced,
+            # never modified (see _prepare), so the copy shares it.
+            new._vis = self._vis.copy()
+            new._cactive = self._cactive.copy()
+            new.polygons = list(self.polygons)
+            new.stats = dict(self.stats)
+        new._lock = threading.Lock()
+        return new
+
     def covered(self, pts: np.ndarray, *, boundary: bool = True) -> np.ndarray:
         """True for points ``(K, 2)`` inside (or, with ``boundary``, on) an enlarged obstacle."""
         pts = np.atleast_2d(np.asarray(pts, float))
@@ -92,6 +124,10 @@ class VisibilityMap:
         """Add enlarged obstacles and update the cache incrementally: corners now covered are
         dropped, cached free pairs crossing a new obstacle become blocked, the new convex corners
         join (unknown visibility)."""
+        with self._lock:
+            self._add_obstacles(polygons, _initial)
+
+    def _add_obstacles(self, polygons: Sequence[Polygon], _initial: bool) -> None:
         polygons = [p for p in polygons if not p.is_empty]
         if not polygons:
             if _initial:
@@ -229,9 +265,7 @@ class VisibilityMap:
         beyond eps from the edge's line (else -1), so the parity is exact whenever it is used.
         A ray to +x crosses an upward edge with the end on its left (cross > 0), a downward one
         with the end on its right."""
-        return self._straight_check(float(p[0]), float(p[1]), float(q[0]), float(q[1]))
-
-    def _straight_check(self, px: float, py: float, qx: float, qy: float) -> int:
+        px, py, qx, qy = float(p[0]), float(p[1]), float(q[0]), float(q[1])
         if self._scan_polys is not None:
             return self._scan(px, py, qx, qy, True)
         if len(self._ax) == 0:
@@ -535,7 +569,13 @@ class VisibilityMap:
         (OMPL's termination condition); stopping early raises NoRouteError with reason timeout.
         ``straight_blocked``: the caller already found the segment start-goal blocked (the same
         test, straight_check), so it is not tested again.
+
+        The search reads and fills the visibility cache: it holds the map's lock.
         """
+        with self._lock:
+            return self._shortest_path(start, goal, should_stop, straight_blocked)
+
+    def _shortest_path(self, start, goal, should_stop, straight_blocked) -> tuple[np.ndarray, float]:
         s = np.asarray(start, float)
         g = np.asarray(goal, float)
         if not straight_blocked and self.segment_free(s, g):

@@ -418,7 +418,7 @@ def check_planner_route(stage: Planner, *, time_limit: float = 2.0) -> None:
     obstacle (to 1e-6 of the map's size), and is no shorter than the straight line."""
     from shapely.geometry import LineString
 
-    from ..planning.api import Problem
+    from ..planning import Problem
 
     pmap = _planning_map()
     start, goal = np.array([1.0, 1.0]), np.array([9.0, 1.0])
@@ -439,7 +439,7 @@ def check_planner_route(stage: Planner, *, time_limit: float = 2.0) -> None:
 
 def check_planner_rejects_bad_start(stage: Planner, *, time_limit: float = 0.5) -> None:
     """A start inside an obstacle raises a PlanningError (not a crash, not a route)."""
-    from ..planning.api import Problem
+    from ..planning import Problem
 
     pmap = _planning_map()
     try:

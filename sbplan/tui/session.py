@@ -42,6 +42,14 @@ def square(centre: Any, side: float) -> np.ndarray:
     return np.array([[x - h, y - h], [x + h, y - h], [x + h, y + h], [x - h, y + h]])
 
 
+def obstacle_arrays(detection: Any) -> list[np.ndarray]:
+    """A detection's obstacles as the planner takes them (``detection_obstacles``), in its order,
+    as (M, 2) arrays ``(x, y)`` metres (what the map view draws)."""
+    from ..planning import detection_obstacles
+
+    return [np.asarray(p.exterior.coords)[:-1] for p in detection_obstacles(detection).polygons]
+
+
 def point_along(waypoints: np.ndarray, fraction: float) -> np.ndarray:
     """The point at ``fraction`` (0..1) of a polyline's length; waypoints (K, 2) ``(x, y)``."""
     wp = np.asarray(waypoints, float).reshape(-1, 2)
@@ -195,10 +203,8 @@ class Session:
         return Detector(cal)(image)
 
     def obstacles_m(self) -> list[np.ndarray]:
-        """The detection's obstacle MARs in metres (what the planner avoids)."""
-        if self.detection is None:
-            return []
-        return [ob.mar_m for ob in self.detection.obstacles]
+        """The detection's obstacles in metres, (M, 2) ``(x, y)`` each (what the planner avoids)."""
+        return [] if self.detection is None else obstacle_arrays(self.detection)
 
     def plan(self) -> Any:
         """Plan from start to goal around the detected obstacles and the dynamic ones."""
@@ -228,4 +234,4 @@ class Session:
     def new_obstacles_in(self, detection: Any) -> list[np.ndarray]:
         """The MARs of ``detection``'s obstacles that cover a cell the current detection left free."""
         known = set(self.detection.occupied_cells) if self.detection is not None else set()
-        return [ob.mar_m for ob in detection.obstacles if set(map(tuple, ob.cells)) - known]
+        return [a for ob, a in zip(detection.obstacles, obstacle_arrays(detection)) if set(map(tuple, ob.cells)) - known]

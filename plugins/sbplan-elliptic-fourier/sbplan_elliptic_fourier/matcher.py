@@ -12,7 +12,7 @@ from typing import ClassVar, Sequence
 import numpy as np
 
 from sbplan.contours import as_points
-from sbplan.contracts import DescriptorMatcher, option
+from sbplan.contracts import DescriptorMatcher, as_descriptors, option
 from sbplan.errors import ContourError, InputError
 
 __all__ = ["EllipticFourierMatcher", "elliptic_coefficients", "normalize_coefficients", "elliptic_descriptors"]
@@ -241,20 +241,9 @@ class EllipticFourierMatcher(DescriptorMatcher):
         return elliptic_descriptors(outlines, harmonics=self.harmonics)
 
     def distance_matrix(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        a, b = _rows(a, "a"), _rows(b, "b")
+        a, b = as_descriptors(a, name="a"), as_descriptors(b, name="b")
         k = 4 * self.harmonics
         if a.shape[1] != k or b.shape[1] != k:
             raise InputError(f"descriptor lengths: expected {k} for harmonics={self.harmonics}, "
                              f"got {a.shape[1]} and {b.shape[1]}")
         return aligned_distances(a, b, self.harmonics)
-
-
-def _rows(x, name: str) -> np.ndarray:
-    arr = np.asarray(x, dtype=np.float64)
-    if arr.ndim == 1:
-        arr = arr[None, :]
-    if arr.ndim != 2:
-        raise InputError(f"{name}: expected descriptors of shape (n, K), got {arr.shape}")
-    if not np.isfinite(arr).all():
-        raise InputError(f"{name}: descriptors contain NaN or infinite values")
-    return arr

@@ -22,10 +22,11 @@ from ...errors import CalibrationError, InputError
 from ...imageio import as_gray, load_image
 from ...workspace import Workspace, load_workspace
 from ..grid import Grid, fit_grid
-from ..outline_checks import (edge_contrast, edge_probes, inner_deviations, inner_tolerance, outline_deviation,
-                              reference_samples, signed_distance_map)
+from ..outline_checks import (EDGE_DEPTH_PX, edge_contrast, edge_probes, inner_deviations, inner_tolerance,
+                              outline_deviation, reference_samples, signed_distance_map)
 from ..registration import centre_window, grey_centres, thumbnail
 from .file import Calibration
+from ..working import WorkScale, work_factor
 from .shapes import Shapes, extract_shapes
 from .threshold import match_threshold
 
@@ -142,14 +143,19 @@ def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str 
     members = _symbol_members(shapes, chosen["matcher"], ref=given)
     # Fit the binarizer to the symbol size found and run again: a window of a few symbol sizes
     # follows the light without swallowing the symbol itself.
+    # Symbols far larger than the outline checks need are worked on in a reduced image
+    # (sbplan.detection.working): a 4K camera costs what the symbols' size asks, not its pixels.
+    size = float(np.sqrt(np.median(shapes.areas[members])))
+    work = WorkScale(work_factor(size), gray.shape)
+    if not work.identity:
+        points_range = (12, max(16, sum(work.work_shape) // 2))
+        kw["work"] = work
     fit = getattr(chosen["binarizer"], "with_symbol_size", None)
-    if fit is not None:
-        size = float(np.sqrt(np.median(shapes.areas[members])))
-        refit = fit(size * 1.6)
-        if refit != chosen["binarizer"]:
-            chosen["binarizer"] = refit
-            shapes = extract_shapes(gray, binarizer=refit, points_range=points_range, **kw)
-            members = _symbol_members(shapes, chosen["matcher"], ref=given)
+    refit = fit(size * 1.6 / work.factor) if fit is not None else chosen["binarizer"]
+    if refit != chosen["binarizer"] or not work.identity:
+        chosen["binarizer"] = refit
+        shapes = extract_shapes(gray, binarizer=refit, points_range=points_range, **kw)
+        members = _symbol_members(shapes, chosen["matcher"], ref=given)
     reference_descriptor = np.median(shapes.descriptors[members], axis=0)
     dist = chosen["matcher"].distance_matrix(shapes.descriptors, reference_descriptor[None, :])[:, 0]
     grid = fit_grid(shapes.centres[members])
@@ -207,29 +213,32 @@ def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str 
         symbol_points_range=(int(n_points.min() * 0.7), int(np.ceil(n_points.max() * 1.4))),
         outline_tolerance_px=outline_tolerance,
         inner_tolerance_px=inner_tol,
-        edge_contrast=edge_contrast(gray, *edge_probes(symbol_polygons)),
-        registration_centres_px=_registration_centres(gray, symbol_polygons, grid),
+        edge_contrast=edge_contrast(gray, *edge_probes(symbol_polygons, EDGE_DEPTH_PX * work.factor)),
+        registration_centres_px=_registration_centres(gray, symbol_polygons, grid, work),
+        work_scale=work.factor,
         reference_thumbnail=thumbnail(gray),
         workspace=workspace,
         stats=stats,
     )
 
 
-def _registration_centres(gray: np.ndarray, symbol_polygons: list[np.ndarray], grid: Grid) -> np.ndarray:
-    """Each cell's symbol's grey-level centre (rows, cols, 2): what registration pairs frames'
-    symbols with (:func:`sbplan.detection.registration.grey_centres`); the grid's centre where a
-    symbol's box leaves the image."""
-    boxes = np.array([[p[:, 0].min(), p[:, 1].min(), p[:, 0].max(), p[:, 1].max()] for p in symbol_polygons])
-    centres = grey_centres(gray, boxes, centre_window(symbol_polygons))
+def _registration_centres(gray: np.ndarray, symbol_polygons: list[np.ndarray], grid: Grid,
+                          work: WorkScale) -> np.ndarray:
+    """Each cell's symbol's grey-level centre (rows, cols, 2), measured in the working image as
+    detection measures frames': what registration pairs frames' symbols with
+    (:func:`sbplan.detection.registration.grey_centres`); the grid's centre where a symbol's box
+    leaves the image."""
+    outlines = [work.to_work(p) for p in symbol_polygons]
+    boxes = np.array([[p[:, 0].min(), p[:, 1].min(), p[:, 0].max(), p[:, 1].max()] for p in outlines])
+    centres = work.to_frame(grey_centres(work.reduce(gray), boxes, centre_window(outlines)))
     fallback = grid.centres_px.reshape(-1, 2)
     bad = ~np.isfinite(centres).all(axis=1)
     centres[bad] = fallback[bad]
     return centres.reshape(grid.rows, grid.cols, 2)
 
-
 def _degraded_symbols(gray: np.ndarray, grid: Grid, descriptor: np.ndarray, cell_area: np.ndarray,
                       distance_map: np.ndarray, *,
-                      binarizer, extractor, approximator, matcher, points_range) -> tuple:
+                      binarizer, extractor, approximator, matcher, points_range, work=None) -> tuple:
     """The reference's symbols in defocused, dimmed, dark-and-grainy and noisy copies of it.
 
     Returns their descriptor distances to ``descriptor``, their outlines' deviations from the
@@ -248,7 +257,7 @@ def _degraded_symbols(gray: np.ndarray, grid: Grid, descriptor: np.ndarray, cell
     distances, deviations, polygons, cells_kept, shifts = [], [], [], [], []
     for image in copies:
         shapes = extract_shapes(image, binarizer=binarizer, extractor=extractor, approximator=approximator,
-                                matcher=matcher, points_range=points_range)
+                                matcher=matcher, points_range=points_range, work=work)
         if not shapes.polygons:
             continue
         cells = grid.assign(shapes.centres)

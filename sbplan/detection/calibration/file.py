@@ -90,6 +90,7 @@ class Calibration:
     edge_contrast: np.ndarray | None = None
     registration_centres_px: np.ndarray | None = None
     reference_thumbnail: np.ndarray | None = None
+    work_scale: int = 1
     workspace: Workspace = field(default_factory=Workspace)
     stats: dict[str, Any] = field(default_factory=dict)
 
@@ -170,6 +171,7 @@ class Calibration:
             "format": FORMAT,
             "image_shape": list(self.image_shape),
             "stages": self.stages,
+            **({} if self.work_scale == 1 else {"work_scale": self.work_scale}),
             "grid": self.grid.to_json(),
             "symbol": {
                 "descriptor": self.descriptor.tolist(),
@@ -207,6 +209,7 @@ class Calibration:
             cal = cls(
                 image_shape=(int(data["image_shape"][0]), int(data["image_shape"][1])),
                 stages={k: dict(v) for k, v in data["stages"].items()},
+                work_scale=_work_scale(data.get("work_scale", 1), source),
                 grid=Grid.from_json(data["grid"]),
                 symbol_polygons=[np.asarray(p, np.float64) for p in sym["polygons"]],
                 other_polygons=[np.asarray(p, np.float64) for p in data["other_polygons"]],
@@ -292,6 +295,12 @@ class Calibration:
     def save(self, path: str | os.PathLike) -> Path:
         """Write the calibration as JSON, atomically (a failed write never destroys a good file)."""
         return write_json(path, self.to_json())
+
+
+def _work_scale(value: Any, source: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= 64:
+        raise CalibrationError(f"{source}: work_scale must be a whole number from 1 to 64, got {value!r}")
+    return value
 
 
 def _png_base64(image: np.ndarray) -> str:

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...polygons import centroids, length_filter, signed_areas
+from ..working import WorkScale
 
 
 @dataclass(frozen=True, eq=False)
@@ -23,14 +24,23 @@ class Shapes:
 
 
 def extract_shapes(gray: np.ndarray, *, binarizer, extractor, approximator, matcher,
-                   points_range: tuple[int, int]) -> Shapes:
-    """Binarize, extract, length-filter, approximate and describe the outer contours of an image."""
+                   points_range: tuple[int, int], work: WorkScale | None = None) -> Shapes:
+    """Binarize, extract, length-filter, approximate and describe the outer contours of an image.
+
+    With ``work`` (:class:`~sbplan.detection.working.WorkScale`) the image is reduced first and
+    the polygons mapped back to its pixels (areas and centres with them); ``points`` and
+    ``points_range`` count the reduced image's boundary pixels.
+    """
+    if work is not None:
+        gray = work.reduce(gray)
     binary = binarizer.binarize(gray)
     contours = [c for c in extractor.extract(binary) if not c.is_hole]
     kept = [contours[i] for i in np.flatnonzero(length_filter_steps(contours, points_range))]
     approximated = [approximator.approximate(c) for c in kept]
     keep = [i for i, p in enumerate(approximated) if len(p) >= 3]
     polygons = [approximated[i] for i in keep]
+    if work is not None and not work.identity:
+        polygons = [work.to_frame(p) for p in polygons]
     n_points = [len(kept[i].points) for i in keep]
     areas = np.abs(signed_areas(polygons)) if polygons else np.zeros(0)
     nonzero = np.flatnonzero(areas > 0)

@@ -1,0 +1,80 @@
+"""``sbplan serve``: the planner service on the network (HTTP + WebSocket), see docs/robots.md."""
+
+from __future__ import annotations
+
+import argparse
+import os
+
+HELP = "serve one workspace over HTTP and WebSocket: obstacles, nav2 map, routes pushed to robots"
+DESCRIPTION = (
+    "Serve a calibration's floor: POST frames (or --source DIR) to detect obstacles, plan routes, get "
+    "them replanned and pushed over WS /events when a new obstacle blocks them. Listens on 127.0.0.1 "
+    "unless --host says otherwise; then a bearer token (--token or SBPLAN_TOKEN) is required for "
+    "everything but /health. OpenAPI at /docs. Needs the serve extra: pip install 'sbplan[serve]'.")
+
+#: Environment variable holding the bearer token (safer than --token, which `ps` shows).
+TOKEN_ENV = "SBPLAN_TOKEN"
+MIN_TOKEN = 16
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("-c", "--calibration", required=True, metavar="CALIBRATION.json")
+    parser.add_argument("--host", default="127.0.0.1",
+                        help="address to listen on (default 127.0.0.1: this machine only; 0.0.0.0: every interface, needs a token)")
+    parser.add_argument("--port", type=int, default=8765, help="TCP port (default 8765; 0: any free port)")
+    parser.add_argument("--source", metavar="DIR",
+                        help="live source: a folder of PNG/JPEG frames, read in name order (default: frames are posted)")
+    parser.add_argument("--interval", type=float, default=0.0, metavar="S",
+                        help="seconds between two frames of --source (default 0: as fast as detection)")
+    parser.add_argument("--token", help=f"bearer token clients must send (default: ${TOKEN_ENV}); required with a non-loopback --host")
+    parser.add_argument("--use", choices=("mar", "outline"), default="mar",
+                        help="plan around the obstacles' minimum-area rectangles (default) or outlines")
+    parser.add_argument("--planner", default="aux-corner", help="planner stage for routes (default aux-corner)")
+    parser.add_argument("--time-limit", type=float, default=1.0, metavar="S", help="seconds per planning query (default 1)")
+    parser.add_argument("--max-routes", type=int, default=256, metavar="N",
+                        help="routes kept; the least recently changed is dropped beyond (default 256)")
+    parser.add_argument("--max-body-mb", type=float, default=32.0, metavar="MB", help="largest frame upload (default 32)")
+    parser.add_argument("--max-pixels", type=int, default=40_000_000, metavar="N",
+                        help="largest image, width x height, read from its header before decoding (default 40e6)")
+    parser.add_argument("--access-log", action="store_true", help="log every request")
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..errors import InputError, SbplanError
+
+    try:
+        import fastapi  # noqa: F401
+        import uvicorn  # noqa: F401
+    except ImportError as exc:
+        raise SbplanError(f"sbplan serve needs the serve extra: pip install 'sbplan[serve]' (missing: {exc.name})") from None
+    from ..detection import load_calibration
+    from ..service import Limits, Service
+    from ..service.app import create_app
+    from ..service.server import address, bind, is_loopback, make_server
+    from ..service.sources import open_source
+
+    token = args.token or os.environ.get(TOKEN_ENV) or None
+    if token is None and not is_loopback(args.host):
+        raise InputError(f"--host {args.host} opens the service to the network: give a bearer token with --token "
+                         f"or ${TOKEN_ENV}")
+    if token is not None and len(token) < MIN_TOKEN:
+        raise InputError(f"token: use at least {MIN_TOKEN} characters, e.g. "
+                         "python3 -c 'import secrets; print(secrets.token_urlsafe())'")
+    if args.max_body_mb <= 0 or args.max_pixels <= 0:
+        raise InputError("--max-body-mb and --max-pixels must be > 0")
+    calibration = load_calibration(args.calibration)
+    source = open_source(args.source, interval=args.interval) if args.source else None
+    service = Service(calibration, use=args.use, planner=args.planner, time_limit=args.time_limit,
+                      max_routes=args.max_routes,
+                      limits=Limits(max_body=int(args.max_body_mb * 2**20), max_pixels=args.max_pixels))
+    try:
+        sock = bind(args.host, args.port)
+        host, port = address(sock)
+        shown = f"[{host}]" if ":" in host else host
+        print(f"sbplan serve: http://{shown}:{port} (API: /docs, events: ws://{shown}:{port}/events"
+              f"{', bearer token required' if token else ''})", flush=True)
+        server = make_server(create_app(service, token=token, source=source), access_log=args.access_log)
+        server.run(sockets=[sock])
+    finally:
+        service.close()
+    return 0
