@@ -14,6 +14,7 @@ from importlib import resources
 
 import jsonschema
 import pytest
+import shapely
 from shapely.geometry import box
 
 import sbplan
@@ -123,3 +124,24 @@ def test_each_schema_refuses_a_broken_document():
     local = exports.geojson(det)
     local["sbplan"]["crs"] = "WGS84"  # lon/lat claimed without the georeference that makes them
     assert errors("geojson", local)
+
+
+def test_the_service_serves_schema_valid_geojson_in_both_crs(tmp_path):
+    """GET /obstacles.geojson goes through the service's response model: it must keep `crs` and
+    the georeference (a model that dropped them served lon/lat that `plan` would read as metres)."""
+    from _service import SCENE_PNG, client, running
+    from sbplan.planning import load_obstacles
+
+    cal, det, _ = paper()
+    geo_cal = replace(cal, workspace=replace(cal.workspace, georeference=Georeference(52.5, 13.4, 30.0)))
+    for what, c in {"local": cal, "WGS84": geo_cal}.items():
+        with running(c) as (url, _), client(url) as http:
+            assert http.post("/detect", content=SCENE_PNG, headers={"content-type": "image/png"}).status_code == 200
+            r = http.get("/obstacles.geojson")
+            assert r.status_code == 200, r.text
+            doc = r.json()
+        assert doc["sbplan"]["crs"] == what and errors("geojson", doc) == [], what
+        (tmp_path / f"{what}.geojson").write_bytes(r.content)
+        loaded = load_obstacles(tmp_path / f"{what}.geojson")
+        for a, b in zip(loaded.polygons, (ob.mar_m for ob in det.obstacles)):
+            assert a.hausdorff_distance(shapely.Polygon(b)) < 1e-3, what
