@@ -139,7 +139,7 @@ def test_workspace_toml_georeference_reaches_the_geojson_of_sbplan_detect(tmp_pa
     assert r.returncode != 0 and r.stderr.startswith("sbplan: error: georeference") and "Traceback" not in r.stderr
 
 
-@pytest.mark.parametrize("command", ["detect", "demo"])
+@pytest.mark.parametrize("command", ["detect", "demo", "serve"])
 def test_every_command_writing_geojson_says_its_crs(command):
     out = subprocess.run([sys.executable, "-m", "sbplan", command, "--help"], capture_output=True, text=True).stdout
     text = " ".join(out.split())
