@@ -10,10 +10,11 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
+import re
 import sys
 
 from . import __version__
-from .errors import SbplanError
+from .errors import EXIT_CODES, SbplanError
 
 #: Subcommand name -> module, in the order ``sbplan --help`` lists them.
 COMMANDS = {
@@ -21,6 +22,7 @@ COMMANDS = {
     "calibrate": "sbplan.commands.calibrate",
     "detect": "sbplan.commands.detect",
     "plan": "sbplan.commands.plan",
+    "watch": "sbplan.commands.watch",
     "synth": "sbplan.commands.synth",
     "symbols": "sbplan.commands.symbols",
     "tui": "sbplan.commands.tui",
@@ -46,14 +48,11 @@ def build_parser(selected: str | None = None) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="sbplan",
         description="Find obstacles on a floor of reference symbols from a ceiling camera, and plan routes around them.",
+        epilog="exit codes:\n" + "\n".join(f"  {k:>3}  {v}" for k, v in EXIT_CODES.items()),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
-    parser.add_argument("-v", "--verbose", action="count", default=0,
-                        help="more log lines on stderr: -v what was done (and OMPL's log, tracebacks on "
-                             "errors), -vv stages and timings")
-    parser.add_argument("-q", "--quiet", action="store_true", help="errors only on stderr (no warnings)")
-    parser.add_argument("--log-json", action="store_true",
-                        help="log lines (warnings, errors, -v's) as one JSON object each, for machines")
+    _log_options(parser, None)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name, module_name in COMMANDS.items():
         module = import_command(module_name)
@@ -66,11 +65,50 @@ def build_parser(selected: str | None = None) -> argparse.ArgumentParser:
         else:
             module.add_arguments(p)
         p.set_defaults(_run=module.run)
+    _verbose_everywhere(sub)
     return parser
 
 
+def _log_options(parser: argparse.ArgumentParser, default: object) -> None:
+    """-v, -q and --log-json: how much of the log (sbplan.logs) shows on stderr, and in which form.
+    ``default`` None: the top level's defaults; SUPPRESS: a command's copy leaves them alone."""
+    parser.add_argument("-v", "--verbose", action="count", default=0 if default is None else default,
+                        help="more log lines on stderr: -v what was done (and OMPL's log, tracebacks on "
+                             "errors), -vv stages and timings (also after the command)")
+    parser.add_argument("-q", "--quiet", action="store_true", default=False if default is None else default,
+                        help="errors only on stderr (no warnings)")
+    parser.add_argument("--log-json", action="store_true", default=False if default is None else default,
+                        help="log lines (warnings, errors, -v's) as one JSON object each, for machines")
+
+
+def _verbose_everywhere(sub: argparse._SubParsersAction) -> None:
+    """-v, -q and --log-json after the command (and after a subcommand's action) as well as before
+    it. SUPPRESS: not given there, they leave the top-level values alone."""
+    for p in set(sub.choices.values()):
+        if not any("-v" in a.option_strings for a in p._actions):
+            _log_options(p, argparse.SUPPRESS)
+        for a in p._actions:
+            if isinstance(a, argparse._SubParsersAction):
+                _verbose_everywhere(a)
+
+
+#: An option's value that starts with a minus and holds a comma (``--start -5,-5``): argparse
+#: takes it for an option unless it is joined to its option with ``=``.
+_NEGATIVE_PAIR = re.compile(r"^-\.?\d[^,]*,")
+
+
+def _join_negative_pairs(argv: list[str]) -> list[str]:
+    out: list[str] = []
+    for a in argv:
+        if out and _NEGATIVE_PAIR.match(a) and out[-1].startswith("--") and "=" not in out[-1]:
+            out[-1] = f"{out[-1]}={a}"
+        else:
+            out.append(a)
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
-    argv = sys.argv[1:] if argv is None else list(argv)
+    argv = _join_negative_pairs(sys.argv[1:] if argv is None else list(argv))
     selected = next((a for a in argv if not a.startswith("-")), None)
     parser = build_parser(selected if selected in COMMANDS else None)
     args = parser.parse_args(argv)

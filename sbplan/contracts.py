@@ -19,15 +19,20 @@ matcher -> occupancy mapper. Planners turn obstacles into routes.
 from __future__ import annotations
 
 import dataclasses
+import math
 import typing
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
-from typing import Any, ClassVar, Sequence
+from typing import TYPE_CHECKING, Any, ClassVar, Sequence, TypedDict
 
 import numpy as np
 
 from .contours import Contour
-from .errors import InputError
+from .errors import InputError, SbplanError, StageError
+
+if TYPE_CHECKING:  # (the contracts are the foundation: the pipeline and the planner import them)
+    from .detection.grid import Grid
+    from .planning.route import Problem, Route
 
 if typing.TYPE_CHECKING:
     from .detection.bands import RowBands
@@ -199,7 +204,7 @@ class ContourApproximator(Stage):
         """Return the polygon's vertices, shape (M, 2) float64 ``(x, y)``, M >= 3 when possible,
         in the contour's traversal order, not closed (first vertex not repeated)."""
 
-    def approximate_many(self, contours: Sequence[Contour]) -> list[np.ndarray]:
+    def approximate_many(self, contours: Sequence[Contour]) -> Sequence[np.ndarray]:
         """:meth:`approximate` of every contour, in order. Detection calls this once per frame;
         override it when a batch is cheaper than one call per contour."""
         return [self.approximate(c) for c in contours]
@@ -248,7 +253,7 @@ class OccupancyMapper(Stage):
     kind = "mapper"
 
     @abstractmethod
-    def occupancy_image(self, grid: Any, occupied: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    def occupancy_image(self, grid: Grid, occupied: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
         """Return the occupancy image.
 
         Parameters
@@ -273,7 +278,7 @@ class Planner(Stage):
     kind = "planner"
 
     @abstractmethod
-    def solve(self, problem: Any, *, time_limit: float = 1.0) -> Any:
+    def solve(self, problem: Problem, *, time_limit: float = 1.0) -> Route:
         """Solve a ``sbplan.planning.Problem`` and return a ``sbplan.planning.Route``."""
 
 
@@ -285,6 +290,93 @@ CONTRACTS: dict[str, type[Stage]] = {
     "mapper": OccupancyMapper,
     "planner": Planner,
 }
+
+
+# -- calling stages ---------------------------------------------------------------------------------
+
+def stage_origin(stage: Any) -> str:
+    """Where a stage comes from: the distribution that registered it, else its class's module."""
+    try:
+        from . import registry
+
+        return registry.registry().info(stage.kind, stage.name).origin
+    except Exception:  # a stage made outside the registry (tests, scripts): its module says it
+        return type(stage).__module__
+
+
+def stage_failure(stage: Any, what: str) -> StageError:
+    """The error for ``stage`` having done ``what`` wrong (its kind, name and origin in the message)."""
+    return StageError(getattr(stage, "kind", "stage"), getattr(stage, "name", type(stage).__name__),
+                      stage_origin(stage), what)
+
+
+def call_stage(stage: Any, method: str, *args: Any, returns: Any = None, **kwargs: Any) -> Any:
+    """``stage.method(*args, **kwargs)``, with what goes wrong turned into a :class:`StageError`
+    that names the stage's kind, name and origin and says what was wrong.
+
+    Every place that calls a stage (detection, calibration, planning) calls it through this
+    function, so that a plugin's exception or broken result is reported the same way everywhere.
+    sbplan's own errors (:class:`SbplanError`: a planner's "no route", a stage's option check)
+    pass unchanged.
+
+    Parameters
+    ----------
+    returns : callable, optional
+        Given the result, returns None when it keeps the contract, else a short description of
+        what is wrong with it ("None, expected an array of shape (n, 1)"). One cheap check
+        (vectorized): this is the hot path.
+    """
+    try:
+        out = getattr(stage, method)(*args, **kwargs)
+    except SbplanError:
+        raise
+    except Exception as exc:
+        text = str(exc).splitlines()[0] if str(exc) else ""
+        raise stage_failure(stage, f"failed in {method}(): {type(exc).__name__}"
+                                   + (f": {text}" if text else "")) from exc
+    if returns is not None:
+        problem = returns(out)
+        if problem:
+            raise stage_failure(stage, f"broke its contract: {method}() returned {problem}")
+    return out
+
+
+def describe_value(v: Any) -> str:
+    """A short description of a value, for contract errors: ``None``, ``str``, ``array (3, 2) float64``."""
+    if v is None:
+        return "None"
+    if isinstance(v, np.ndarray):
+        return f"an array of shape {v.shape} and dtype {v.dtype}"
+    return f"a {type(v).__name__}"
+
+
+def array_of(shape: tuple, *, finite: bool = False, kinds: str = "biuf") -> Any:
+    """A ``returns`` check for :func:`call_stage`: an ndarray of ``shape`` (None: any length there)
+    whose dtype kind is one of ``kinds``, finite everywhere when ``finite``."""
+    want = " x ".join("n" if e is None else str(e) for e in shape)
+    fixed = None not in shape
+
+    def check(v: Any) -> str | None:
+        if not isinstance(v, np.ndarray) or v.dtype.kind not in kinds or (
+                v.shape != shape if fixed else
+                (v.ndim != len(shape) or any(e is not None and e != g for e, g in zip(shape, v.shape)))):
+            return f"{describe_value(v)}, expected an array of shape ({want})"
+        # one reduction, no temporary: NaN and infinities propagate into the sum
+        if finite and v.size and not math.isfinite(v.sum()):
+            return "NaN or infinite values"
+        return None
+
+    return check
+
+
+def descriptors_of(matcher: Any, outlines: Sequence[np.ndarray]) -> np.ndarray:
+    """``matcher.describe_many(outlines)`` through :func:`call_stage`: shape (n, K), finite."""
+    return call_stage(matcher, "describe_many", outlines, returns=array_of((len(outlines), None), finite=True))
+
+
+def distances_between(matcher: Any, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``matcher.distance_matrix(a, b)`` through :func:`call_stage`: shape (len(a), len(b)), finite."""
+    return call_stage(matcher, "distance_matrix", a, b, returns=array_of((len(a), len(b)), finite=True))
 
 
 def as_descriptors(descriptors, *, name: str = "descriptors") -> np.ndarray:
@@ -309,3 +401,14 @@ def as_descriptors(descriptors, *, name: str = "descriptors") -> np.ndarray:
     if not np.isfinite(arr).all():
         raise InputError(f"{name}: descriptors contain NaN or infinite values")
     return arr
+
+
+class StageChoices(TypedDict, total=False):
+    """The detection stages chosen for :func:`sbplan.calibrate`, :func:`sbplan.detect` and
+    :class:`~sbplan.detection.Detector` (``**choices``): kind -> registered name or stage instance."""
+
+    binarizer: str | Binarizer
+    extractor: str | ContourExtractor
+    approximator: str | ContourApproximator
+    matcher: str | DescriptorMatcher
+    mapper: str | OccupancyMapper

@@ -1,24 +1,29 @@
-"""Reading images and writing files safely.
+"""Reading images (validated, size-checked before decoding) and writing them.
 
-Every file sbplan writes goes through :func:`write_atomic`: it is written to a temporary file in
-the same folder and renamed over the target, so a failed run never leaves a half-written file and
-never destroys a good one.
+Every file sbplan writes goes through :func:`sbplan.files.write_atomic` (re-exported here with
+:func:`write_json`): it is written to a temporary file in the same folder and renamed over the
+target, so a failed run never leaves a half-written file and never destroys a good one.
 """
 
 from __future__ import annotations
 
-import json
 import os
+import stat
 import struct
-import tempfile
 import zlib
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import cv2
 import numpy as np
 
-from .errors import ImageError
+from . import limits
+from .errors import ImageError, OutputError
+from .files import json_default, write_atomic, write_json  # noqa: F401  (re-exported)
+
+#: An image the pipeline takes: a path of an image file, or an array (H, W), (H, W, 3) or (H, W, 4)
+#: (see :func:`as_gray`).
+ImageInput = str | os.PathLike | np.ndarray
 
 
 def as_gray(image: Any, *, name: str = "image") -> np.ndarray:
@@ -72,69 +77,164 @@ def as_gray(image: Any, *, name: str = "image") -> np.ndarray:
     return np.ascontiguousarray(image)
 
 
+def image_size(head: bytes) -> tuple[int, int] | None:
+    """Width and height of an encoded image from its header, without decoding it.
+
+    Reads PNG, JPEG, PNM (PBM/PGM/PPM), BMP, TIFF and WebP headers; None for other formats (and
+    for headers it cannot make sense of), which are then decoded and checked after decoding.
+
+    Parameters
+    ----------
+    head : bytes
+        The file's first bytes (a JPEG's size may come after its metadata: give the whole file).
+    """
+    try:
+        return _header_size(head)
+    except (struct.error, IndexError, ValueError):
+        return None
+
+
+def _header_size(b: bytes) -> tuple[int, int] | None:
+    if b[:8] == b"\x89PNG\r\n\x1a\n" and b[12:16] == b"IHDR":
+        return struct.unpack(">II", b[16:24])
+    if b[:2] == b"\xff\xd8":
+        i = 2
+        while i + 9 < len(b):
+            if b[i] != 0xFF:
+                return None
+            marker = b[i + 1]
+            if marker == 0xFF:  # fill byte
+                i += 1
+                continue
+            if marker in (0xD8, 0x01) or 0xD0 <= marker <= 0xD7:
+                i += 2
+                continue
+            (length,) = struct.unpack(">H", b[i + 2:i + 4])
+            if 0xC0 <= marker <= 0xCF and marker not in (0xC4, 0xC8, 0xCC):
+                h, w = struct.unpack(">HH", b[i + 5:i + 9])
+                return w, h
+            i += 2 + length
+        return None
+    if b[:1] == b"P" and b[1:2] in b"123456" and len(b) > 2:
+        fields: list[int] = []
+        for line in b[2:4096].split(b"\n"):
+            line = line.split(b"#", 1)[0]
+            fields += [int(t) for t in line.split()]
+            if len(fields) >= 2:
+                return fields[0], fields[1]
+        return None
+    if b[:2] == b"BM":
+        w, h = struct.unpack("<ii", b[18:26])
+        return abs(w), abs(h)
+    if b[:4] in (b"II*\x00", b"MM\x00*"):
+        e = "<" if b[:2] == b"II" else ">"
+        (ifd,) = struct.unpack(e + "I", b[4:8])
+        (n,) = struct.unpack(e + "H", b[ifd:ifd + 2])
+        size = {}
+        for k in range(n):
+            tag, typ, _count = struct.unpack(e + "HHI", b[ifd + 2 + 12 * k:ifd + 10 + 12 * k])
+            if tag in (256, 257):
+                at = ifd + 10 + 12 * k
+                size[tag] = struct.unpack(e + ("H" if typ == 3 else "I"), b[at:at + (2 if typ == 3 else 4)])[0]
+        return (size[256], size[257]) if len(size) == 2 else None
+    if b[:4] == b"RIFF" and b[8:12] == b"WEBP":
+        chunk = b[12:16]
+        if chunk == b"VP8 ":
+            w, h = struct.unpack("<HH", b[26:30])
+            return w & 0x3FFF, h & 0x3FFF
+        if chunk == b"VP8L":
+            v = int.from_bytes(b[21:25], "little")
+            return (v & 0x3FFF) + 1, ((v >> 14) & 0x3FFF) + 1
+        if chunk == b"VP8X":
+            return int.from_bytes(b[24:27], "little") + 1, int.from_bytes(b[27:30], "little") + 1
+    return None
+
+
 def load_image(path: str | os.PathLike) -> np.ndarray:
-    """Read an image file as 8-bit grayscale, shape (H, W). 16-bit files are scaled."""
+    """Read an image file as 8-bit grayscale, shape (H, W). 16-bit files are scaled.
+
+    The image's size is read from its header and checked against the ``image_pixels`` limit
+    (:mod:`sbplan.limits`) before it is decoded (:func:`read_image`).
+    """
+    return as_gray(read_image(path), name=str(Path(path)))
+
+
+def read_image(path: str | os.PathLike) -> np.ndarray:
+    """Read an image file as it is stored: (H, W) grey or (H, W, C) BGR(A), 8 or 16 bits (a nav2
+    map's alpha channel and bit depth matter). Checked as :func:`load_image` checks it.
+
+    Raises
+    ------
+    ImageError
+        No such file, not a regular file, or not an image OpenCV can read.
+    LimitError
+        More pixels than the limit.
+    """
     p = Path(path)
-    if not p.exists():
-        raise ImageError(f"{p}: no such file")
-    if p.is_dir():
+    try:
+        st = p.stat()
+    except FileNotFoundError:
+        raise ImageError(f"{p}: no such file") from None
+    except OSError as exc:
+        raise ImageError(f"{p}: cannot be read ({exc.strerror})") from None
+    if stat.S_ISDIR(st.st_mode):
         raise ImageError(f"{p}: is a folder, not an image")
-    data = np.fromfile(str(p), dtype=np.uint8)
-    image = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
+    if not stat.S_ISREG(st.st_mode):
+        raise ImageError(f"{p}: is not a regular file (a device, FIFO or socket); give an image file")
+    top = limits.limit("image_pixels")
+    # an encoded image is never much larger than its pixels (16-bit RGBA, uncompressed)
+    limits.check("image_pixels", (st.st_size - 65536) / 8, f"{p}: a {st.st_size:,}-byte file")
+    try:
+        data = np.fromfile(str(p), dtype=np.uint8)
+    except OSError as exc:
+        raise ImageError(f"{p}: cannot be read ({exc.strerror})") from None
+    size = image_size(data.tobytes()) if data.size else None
+    if size is not None:
+        w, h = size
+        if w <= 0 or h <= 0:
+            raise ImageError(f"{p}: not an image OpenCV can read (its header says {w} x {h} pixels)")
+        limits.check("image_pixels", w * h, f"{p}: {w} x {h} pixels", "give a smaller image")
+    try:
+        image = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
+    except cv2.error:
+        image = None
     if image is None:
         raise ImageError(f"{p}: not an image OpenCV can read")
-    return as_gray(image, name=str(p))
+    h, w = image.shape[:2]
+    if h * w > top:  # a format whose header was not read: checked after decoding
+        limits.check("image_pixels", h * w, f"{p}: {w} x {h} pixels", "give a smaller image")
+    if image.size == 0:
+        raise ImageError(f"{p}: empty image")
+    return image
 
 
-def write_atomic(path: str | os.PathLike, write: Callable[[Any], None] | bytes | str, *, binary: bool = True) -> Path:
-    """Write a file atomically. ``write`` is the content, or a function given the open file."""
-    p = Path(path)
-    folder = p.parent if str(p.parent) else Path(".")
-    folder.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=folder)
-    try:
-        # mkstemp makes the file private (0600); a result file should be as readable as any other
-        # (a replaced file keeps its mode)
-        os.chmod(tmp, p.stat().st_mode & 0o7777 if p.exists() else 0o644)
-        mode = "wb" if binary and not isinstance(write, str) else "w"
-        with os.fdopen(fd, mode, **({} if "b" in mode else {"encoding": "utf-8"})) as fh:
-            if callable(write):
-                write(fh)
-            else:
-                fh.write(write)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, p)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
-    return p
-
-
-def write_json(path: str | os.PathLike, obj: Any) -> Path:
-    """Write ``obj`` as indented JSON, atomically."""
-    text = json.dumps(obj, indent=2, default=json_default) + "\n"
-    return write_atomic(path, text)
-
-
-def write_image(path: str | os.PathLike, image: np.ndarray, *, text: dict[str, str] | None = None) -> Path:
-    """Write an image (PNG, PGM, JPEG… by the file's ending) atomically.
+def encode_image(path: str | os.PathLike, image: np.ndarray, *, text: dict[str, str] | None = None) -> bytes:
+    """``image`` encoded in the format the file name's ending names (PNG, PGM, JPEG, ...).
 
     ``text``: keyword -> value pairs the file carries about itself (what :func:`image_text`
     reads): PNG ``tEXt`` chunks, or comment lines in a PGM/PPM header; other formats carry none.
+
+    Raises
+    ------
+    OutputError
+        No encoder for that ending, or the image cannot be encoded in that format.
     """
     p = Path(path)
     ext = p.suffix.lower() or ".png"
-    ok, buf = cv2.imencode(ext, image)
+    try:
+        ok, buf = cv2.imencode(ext, image)
+    except cv2.error:
+        ok = False
     if not ok:
-        raise ImageError(f"{p}: cannot encode an image as {ext}")
+        raise OutputError(f"{p}: cannot write images ending in {ext!r}; use .png, .pgm, .jpg, .bmp or .tif")
     data = buf.tobytes()
-    if text:
-        data = _with_text(data, ext, text)
-    return write_atomic(p, data)
+    return _with_text(data, ext, text) if text else data
+
+
+def write_image(path: str | os.PathLike, image: np.ndarray, *, text: dict[str, str] | None = None) -> Path:
+    """Write an image (PNG, PGM, JPEG… by the file's ending) atomically, with ``text`` as
+    :func:`encode_image` writes it."""
+    return write_atomic(path, encode_image(path, image, text=text))
 
 
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -183,16 +283,3 @@ def image_text(path: str | os.PathLike) -> dict[str, str]:
                 key, _, value = line[1:].decode("latin-1").partition(":")
                 out[key.strip()] = value.strip()
     return out
-
-
-def json_default(obj: Any) -> Any:
-    """``json.dumps(default=...)`` for numpy values, arrays, paths and tuples."""
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, Path):
-        return str(obj)
-    if isinstance(obj, tuple):
-        return list(obj)
-    raise TypeError(f"not JSON serializable: {type(obj).__name__}")

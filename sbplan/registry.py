@@ -14,7 +14,6 @@ from __future__ import annotations
 import importlib.metadata
 import logging
 import threading
-import warnings
 from dataclasses import dataclass
 from typing import Any
 
@@ -22,9 +21,10 @@ import pluggy
 
 from . import hookspecs
 from .contracts import CONTRACTS, KINDS, Stage
-from .errors import PluginError, UnknownStageError
+from .errors import PluginError, SbplanError, StageError, UnknownStageError
 
 ENTRY_POINT_GROUP = "sbplan"
+_log = logging.getLogger("sbplan.registry")
 
 log = logging.getLogger(__name__)
 
@@ -106,7 +106,8 @@ class StageRegistry:
         try:
             return self._stages[(kind, self._aliases.get((kind, name), name))]
         except (KeyError, TypeError):
-            raise UnknownStageError(kind, name, self.names(kind)) from None
+            raise UnknownStageError(kind, name, self.names(kind),
+                                    [f"{f.plugin} ({f.error})" for f in self.failures]) from None
 
     def get(self, kind: str, name: str) -> type[Stage]:
         return self.info(kind, name).cls
@@ -115,12 +116,16 @@ class StageRegistry:
         """An instance of the named stage (an instance passed in is returned as it is)."""
         if isinstance(name, Stage):
             return name
-        cls = self.get(kind, name)
+        info = self.info(kind, name)
         try:
-            stage = cls(**options)
+            stage = info.cls(**options)
         except TypeError as exc:
             raise PluginError(f"{kind} {name!r}: bad options ({exc})") from None
-        log.debug("%s %s%s", kind, cls.name, f" {options}" if options else "")
+        except SbplanError:
+            raise
+        except Exception as exc:  # a plugin's constructor that fails: named, not a traceback
+            raise StageError(kind, name, info.origin, f"cannot be made: {type(exc).__name__}: {exc}") from exc
+        log.debug("%s %s%s", kind, info.cls.name, f" {options}" if options else "")
         return stage
 
     def all(self) -> list[StageInfo]:
@@ -136,14 +141,22 @@ def _check_kind(kind: str) -> None:
         raise PluginError(f"unknown stage kind {kind!r}; kinds: {', '.join(KINDS)}")
 
 
-def get_plugin_manager(*, load_entry_points: bool = True) -> pluggy.PluginManager:
+class SbplanPluginManager(pluggy.PluginManager):
+    """A pluggy plugin manager that also remembers which plugins failed to load and which
+    distribution each entry point came from."""
+
+    def __init__(self) -> None:
+        super().__init__(hookspecs.PROJECT)
+        self.sbplan_failures: list[LoadFailure] = []
+        self.sbplan_origins: dict[str, str] = {}
+
+
+def get_plugin_manager(*, load_entry_points: bool = True) -> SbplanPluginManager:
     """A new plugin manager with sbplan's hookspecs and, unless told not to, every installed
     plugin of the ``sbplan`` entry-point group. Import failures are kept in ``pm.sbplan_failures``.
     """
-    pm = pluggy.PluginManager(hookspecs.PROJECT)
+    pm = SbplanPluginManager()
     pm.add_hookspecs(hookspecs)
-    pm.sbplan_failures = []  # type: ignore[attr-defined]
-    pm.sbplan_origins = {}  # type: ignore[attr-defined]
     if load_entry_points:
         for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
             origin = ep.dist.name if ep.dist is not None else ep.value
@@ -155,7 +168,7 @@ def get_plugin_manager(*, load_entry_points: bool = True) -> pluggy.PluginManage
             except Exception as exc:  # a broken plugin must not take the others down
                 pm.sbplan_failures.append(LoadFailure(ep.name, origin, f"{type(exc).__name__}: {exc}"))
                 continue
-            pm.sbplan_origins[ep.name] = origin  # type: ignore[attr-defined]
+            pm.sbplan_origins[ep.name] = origin
     pm.check_pending()
     return pm
 
@@ -177,9 +190,11 @@ def build_registry(pm: pluggy.PluginManager | None = None) -> StageRegistry:
                 registry.failures.append(
                     LoadFailure(impl.plugin_name, registry._origin, f"{type(exc).__name__}: {exc}"))
     registry._origin = "sbplan"
+    # Logged, not warned: a broken plugin nobody asked for must not print on every command. Who
+    # names one of its stages is told (UnknownStageError lists the failures); `sbplan plugins`
+    # and `sbplan -v` show them.
     for failure in registry.failures:
-        warnings.warn(f"sbplan plugin {failure.plugin!r} ({failure.origin}) failed to load: {failure.error}",
-                      RuntimeWarning, stacklevel=2)
+        _log.warning("sbplan plugin %r (%s) failed to load: %s", failure.plugin, failure.origin, failure.error)
     return registry
 
 

@@ -141,10 +141,13 @@ class Workspace:
     georeference: Georeference | None = None  # None: GeoJSON in the local frame (metres)
 
     def __post_init__(self) -> None:
-        if len(self.pitch_m) != 2 or min(self.pitch_m) <= 0 or not np.isfinite(self.pitch_m).all():
+        if len(self.pitch_m) != 2 or not np.isfinite(self.pitch_m).all() or min(self.pitch_m) <= 0:
             raise MapFormatError(f"grid.pitch_m: must be two positive numbers, got {self.pitch_m}")
-        if self.robot_radius_m < 0:
-            raise MapFormatError(f"robot.radius_m: must be >= 0, got {self.robot_radius_m}")
+        if not (np.isfinite(self.robot_radius_m) and self.robot_radius_m >= 0):
+            raise MapFormatError(f"robot.radius_m: must be a finite number >= 0, got {self.robot_radius_m}")
+        for key, v in (("origin.xy_m", self.origin_m), ("route.start_m", self.start_m), ("route.goal_m", self.goal_m)):
+            if v is not None and (len(v) != 2 or not np.isfinite(v).all()):
+                raise MapFormatError(f"{key}: must be two finite numbers, got {v}")
 
     @property
     def origin(self) -> tuple[float, float]:
@@ -183,10 +186,18 @@ def _pair(table: dict, key: str, where: str, required: bool = False) -> tuple[fl
     if isinstance(v, (int, float)):
         v = [v, v]
     try:
+        if isinstance(v, (str, bytes)):
+            raise TypeError
         x, y = (float(t) for t in v)
     except (TypeError, ValueError):
         raise MapFormatError(f"{where}: {key} must be a number or two numbers, got {v!r}") from None
     return x, y
+
+
+def _required_pair(table: dict, key: str, where: str) -> tuple[float, float]:
+    pair = _pair(table, key, where, required=True)
+    assert pair is not None  # _pair raises when a required key is missing
+    return pair
 
 
 def load_workspace(path: str | os.PathLike) -> Workspace:
@@ -196,18 +207,29 @@ def load_workspace(path: str | os.PathLike) -> Workspace:
         p = p / "workspace.toml"
     if not p.exists():
         raise MapFormatError(f"{p}: no such file")
+    if not p.is_file():
+        raise MapFormatError(f"{p}: is not a regular file (a device, FIFO or socket)")
     try:
         data = tomllib.loads(p.read_text(encoding="utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise MapFormatError(f"{p}: not valid TOML ({exc})") from None
-    grid, origin = data.get("grid", {}), data.get("origin", {})
-    robot, route = data.get("robot", {}), data.get("route", {})
+    tables = {}
+    for key in ("grid", "origin", "robot", "route"):
+        tables[key] = data.get(key, {})
+        if not isinstance(tables[key], dict):
+            raise MapFormatError(f"{p}: [{key}] must be a table")
+    radius = tables["robot"].get("radius_m", 0.0)
+    if isinstance(radius, bool) or not isinstance(radius, (int, float)):
+        raise MapFormatError(f"{p} [robot]: radius_m must be a number, got {radius!r}")
     geo = data.get("georeference")
-    return Workspace(
-        pitch_m=_pair(grid, "pitch_m", f"{p} [grid]", required=True),
-        origin_m=_pair(origin, "xy_m", f"{p} [origin]"),
-        robot_radius_m=float(robot.get("radius_m", 0.0)),
-        start_m=_pair(route, "start_m", f"{p} [route]"),
-        goal_m=_pair(route, "goal_m", f"{p} [route]"),
-        georeference=None if geo is None else Georeference.from_json(geo, where=f"{p} [georeference]"),
-    )
+    try:
+        return Workspace(
+            pitch_m=_pair(tables["grid"], "pitch_m", f"{p} [grid]", required=True),
+            origin_m=_pair(tables["origin"], "xy_m", f"{p} [origin]"),
+            robot_radius_m=float(radius),
+            start_m=_pair(tables["route"], "start_m", f"{p} [route]"),
+            goal_m=_pair(tables["route"], "goal_m", f"{p} [route]"),
+            georeference=None if geo is None else Georeference.from_json(geo, where="[georeference]"),
+        )
+    except MapFormatError as exc:
+        raise MapFormatError(f"{p}: {exc}") from None

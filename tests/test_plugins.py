@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 import textwrap
@@ -114,19 +115,44 @@ def test_a_broken_plugin_is_reported_by_name_and_others_still_load(tmp_path):
     (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: broken-sbplan-plugin\nVersion: 0.1\n")
     (dist / "entry_points.txt").write_text("[sbplan]\nbroken = sbplan_module_that_does_not_exist\n")
     code = textwrap.dedent(f"""
-        import sys, warnings
+        import logging, sys, warnings
         sys.path.insert(0, {str(tmp_path)!r})
         from sbplan import registry as plugins
+        records = []
+        handler = logging.Handler()
+        handler.emit = records.append
+        logging.getLogger("sbplan").addHandler(handler)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             reg = plugins.build_registry()
         print([(f.plugin, f.origin) for f in reg.failures])
         print(len(reg.names("mapper")) >= 2)
-        print(any("broken" in str(w.message) for w in caught))
+        print(any("broken" in r.getMessage() for r in records), len(caught))
+        try:
+            reg.create("mapper", "nope")
+        except Exception as exc:
+            print(exc)
     """)
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split("\n")
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    out = run.stdout.split("\n")
     assert out[0] == "[('broken', 'broken-sbplan-plugin')]"
-    assert out[1] == "True" and out[2] == "True"
+    # logged (for -v and for applications that set up logging), never a raw RuntimeWarning
+    assert out[1] == "True" and out[2] == "True 0"
+    assert run.stderr == ""
+    # who asks for a stage that is not there hears about the plugin that failed
+    assert "unknown mapper 'nope'" in out[3] and "broken (ModuleNotFoundError" in out[3]
+
+
+def test_a_broken_plugin_prints_nothing_on_commands_that_do_not_need_it(tmp_path):
+    dist = tmp_path / "broken_sbplan_plugin-0.1.dist-info"
+    dist.mkdir()
+    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: broken-sbplan-plugin\nVersion: 0.1\n")
+    (dist / "entry_points.txt").write_text("[sbplan]\nbroken = sbplan_module_that_does_not_exist\n")
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(tmp_path), os.environ.get("PYTHONPATH", "")]))
+    run = subprocess.run([sys.executable, "-m", "sbplan", "symbols", "list"], capture_output=True, text=True, env=env)
+    assert run.returncode == 0 and run.stderr == ""
+    listed = subprocess.run([sys.executable, "-m", "sbplan", "plugins"], capture_output=True, text=True, env=env)
+    assert listed.returncode == 8 and "plugin 'broken'" in listed.stdout and "Warning" not in listed.stderr
 
 
 def test_sbplan_plugins_command_lists_kind_name_origin_description(capsys):

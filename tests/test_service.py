@@ -285,7 +285,7 @@ def test_serve_refuses_an_open_host_without_a_token_and_bad_options(cal, tmp_pat
     assert "Traceback" not in capsys.readouterr().err
     good = str(tmp_path / "cal.json")
     cal.save(good)
-    assert main(["serve", "-c", good, "--planner", "teleport"]) == 1
+    assert main(["serve", "-c", good, "--planner", "teleport"]) == 8  # a missing plugin stage
     assert "unknown planner 'teleport'" in capsys.readouterr().err
     assert main(["serve", "-c", good, "--source", str(tmp_path / "nowhere")]) == 2
     assert "not a folder of images" in capsys.readouterr().err

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from ..errors import InputError
 from ._stage_options import add_stage_arguments, stage_choices
 
 HELP = "calibrate on a reference image of the empty floor and write a calibration file"
@@ -27,13 +28,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # imported when the command runs: the CLI starts without loading numpy, OpenCV and the pipeline
     from ..detection.calibration import calibrate, load_calibration, update_calibration
-    from ..errors import InputError
+    from ..files import check_outputs
 
     if args.update is not None:
         if args.symbol or args.cell_size is not None or args.workspace:
             raise InputError("--update: --symbol, --cell-size and --workspace belong to a new calibration; "
                              "an update keeps the calibration's own")
+        # the updated file may replace the calibration it updates (the default), never the frame
+        check_outputs({"-o": args.output or args.update}, {"frame": args.reference})
         old = load_calibration(args.update)
         cal, motion = update_calibration(old, args.reference, **stage_choices(args))
         output = args.output or args.update
@@ -43,6 +47,8 @@ def run(args: argparse.Namespace) -> int:
         return 0
     if not args.output:
         raise InputError("-o/--output: the calibration file to write is required")
+    check_outputs({"-o": args.output}, {"reference": args.reference, "--symbol": args.symbol,
+                                        "--workspace": args.workspace})
     workspace = args.workspace
     if workspace is None and args.cell_size is None:
         beside = Path(args.reference).parent / "workspace.toml"

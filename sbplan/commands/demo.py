@@ -19,19 +19,51 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="map folder with reference.png, scene-01.png and workspace.toml (default: %(default)s)")
     parser.add_argument("--scene", default="scene-01.png", help="scene image in the map folder (default: %(default)s)")
     parser.add_argument("-o", "--output", default=None, metavar="DIR",
-                        help="folder for the calibration, result, pictures and maps (default: out/<map name>)")
+                        help="folder for the calibration, result, pictures and maps (default: out/<map name>); "
+                             "replaced as a whole, so it must be new or hold only a previous demo's files")
     parser.add_argument("--planner", default="aux-corner", help="planner stage (default: %(default)s)")
     from .detect import add_georef_argument
 
     add_georef_argument(parser)
 
 
-def run(args: argparse.Namespace) -> int:
+#: What the demo's output folder holds (it is replaced as a whole, so it may hold nothing else).
+DEMO_FILES = ("calibration.json", "result.json", "overlay.png", "occupancy.png", "obstacles.geojson", "nav2",
+              "route.json")
+
+
+def demo_files(calibration, image, detection, route=None) -> dict[str, bytes | str]:
+    """The demo's output folder as ``{relative path: content}``: calibration, result, pictures,
+    GeoJSON, nav2 map and (when planned) the route, written as one unit by :func:`run`."""
+    import json
+
     from ..detection import exports
+    from ..files import json_default
+    from ..imageio import encode_image
+
+    def as_json(obj) -> str:
+        return json.dumps(obj, indent=2, default=json_default) + "\n"
+
+    files: dict[str, bytes | str] = {
+        "calibration.json": as_json(calibration.to_json()),
+        "result.json": as_json(detection.to_json()),
+        "overlay.png": encode_image("overlay.png", exports.overlay_image(image, detection)),
+        "occupancy.png": encode_image("occupancy.png", detection.occupancy),
+        "obstacles.geojson": json.dumps(exports.geojson(detection), indent=1) + "\n",
+        **{f"nav2/{name}": data for name, data in exports.nav2_files(detection).items()},
+    }
+    if route is not None:
+        files["route.json"] = as_json(route.to_dict())
+    return files
+
+
+def run(args: argparse.Namespace) -> int:
+    # imported when the command runs: the CLI starts without loading numpy, OpenCV and the pipeline
     from ..detection.calibration import calibrate
     from ..detection import Detector
     from ..errors import MapFormatError
-    from ..imageio import load_image, write_json
+    from ..files import check_set_folder, write_file_set
+    from ..imageio import load_image
     from ..workspace import load_workspace
     from .detect import summary_lines
 
@@ -40,6 +72,7 @@ def run(args: argparse.Namespace) -> int:
         raise MapFormatError(f"{folder}: not a map folder (no reference.png); run from the sbplan checkout "
                              "or name a map folder")
     out = Path(args.output or Path("out") / folder.name)
+    check_set_folder(out, DEMO_FILES, what="-o")  # refused before the work, not after it
     workspace = load_workspace(folder) if (folder / "workspace.toml").is_file() else None
     print(f"map {folder}: calibrating on reference.png")
     if args.georef is not None:
@@ -49,18 +82,13 @@ def run(args: argparse.Namespace) -> int:
 
         workspace = replace(workspace or Workspace(), georeference=Georeference.parse(args.georef))
     cal = calibrate(folder / "reference.png", workspace=workspace)
-    cal.save(out / "calibration.json")
     print(f"  grid {cal.grid.cols} x {cal.grid.rows}, threshold {cal.threshold:.4f}, margin {cal.margin:.1f}x")
     image = load_image(folder / args.scene)
     detection = Detector(cal)(image)
     print(f"detecting on {args.scene}")
     for line in summary_lines(detection):
         print("  " + line)
-    write_json(out / "result.json", detection.to_json())
-    exports.write_overlay(out / "overlay.png", image, detection)
-    exports.write_occupancy(out / "occupancy.png", detection)
-    exports.write_geojson(out / "obstacles.geojson", detection)
-    exports.write_nav2(out / "nav2", detection)
+    route = None
     ws = cal.workspace
     if ws.start_m and ws.goal_m:
         from ..planning import detection_obstacles, plan
@@ -73,6 +101,8 @@ def run(args: argparse.Namespace) -> int:
         pts = " -> ".join(f"({x:.2f}, {y:.2f})" for x, y in route.waypoints)
         print(f"route ({route.planner}, {route.status}): {route.length:.3f} m in {route.time_s * 1e3:.2f} ms")
         print(f"  {pts}")
-        write_json(out / "route.json", route.to_dict())
+    # every file of the run goes into the folder at once: a reader never sees one run's result
+    # beside another run's GeoJSON (sbplan.files.write_file_set)
+    write_file_set(out, demo_files(cal, image, detection, route), names=DEMO_FILES)
     print(f"wrote {out}/: calibration.json, result.json, overlay.png, occupancy.png, obstacles.geojson, nav2/")
     return 0

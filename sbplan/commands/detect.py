@@ -19,8 +19,7 @@ def add_georef_argument(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--georef", metavar="LAT,LON,HEADING", default=None,
                         help="where the floor is on the Earth, for GeoJSON: WGS84 latitude and longitude (degrees) "
                              "of the world point (0, 0) and the compass heading of the floor's x axis (degrees "
-                             "clockwise from north); overrides workspace.toml's [georeference]; a negative "
-                             "latitude needs the = form: --georef=-33.86,151.21,90")
+                             "clockwise from north); overrides workspace.toml's [georeference]")
 
 
 def with_georeference(calibration, text: str | None):
@@ -55,10 +54,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def summary_lines(detection) -> list[str]:
+    # imported when the command runs: the CLI starts without loading numpy, OpenCV and the pipeline
     from ..detection.obstacles import axis_angle
 
     lines = [
-        f"symbols: {detection.symbols_expected} expected, {detection.symbols_found} found",
+        f"symbols: {detection.symbols_expected} expected, {detection.symbols_found} found"
+        + (f", {detection.symbols_rescued} more whole in the grey image" if detection.symbols_rescued else ""),
         f"occupied cells: {len(detection.occupied_cells)}  (row, col): "
         + " ".join(f"({r},{c})" for r, c in detection.occupied_cells),
         f"obstacles: {len(detection.obstacles)}",
@@ -75,11 +76,20 @@ def summary_lines(detection) -> list[str]:
 
 
 def run(args: argparse.Namespace) -> int:
+    # imported when the command runs: the CLI starts without loading numpy, OpenCV and the pipeline
     from ..detection import exports
     from ..detection import Detector
     from ..detection.calibration import load_calibration
+    from ..files import check_outputs
     from ..imageio import load_image, write_json
 
+    # refused before any work: outputs that are devices, links, folders, inputs or named twice
+    check_outputs({"-o": args.output, "--overlay": args.overlay, "--occupancy": args.occupancy,
+                   "--geojson": args.geojson, "--nav2": args.nav2},
+                  {"scene": args.scene, "-c": args.calibration},
+                  folders={"--nav2": exports.NAV2_FILES}, images=("--overlay", "--occupancy"))
+    if args.nav2_resolution is not None:
+        exports.nav2_resolution(args.nav2_resolution, (1.0, 1.0))
     cal = with_georeference(load_calibration(args.calibration), args.georef)
     image = load_image(args.scene)
     detection = Detector(cal, **stage_choices(args))(image)

@@ -13,12 +13,18 @@ DESCRIPTION = (
     "(< 128) are obstacles.")
 
 
-def _xy(text: str) -> tuple[float, float]:
-    try:
-        x, y = (float(v) for v in text.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected X,Y, got {text!r}") from None
-    return x, y
+def comma_pair(label: str):
+    """An argparse type: two numbers separated by a comma; ``label`` names them in the error."""
+    def parse(text: str) -> tuple[float, float]:
+        try:
+            a, b = (float(v) for v in text.split(","))
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {label}, got {text!r}") from None
+        return a, b
+    return parse
+
+
+_xy = comma_pair("X,Y")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -34,17 +40,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="metres per pixel of a plain occupancy image (default 1: pixel units)")
     parser.add_argument("--use", choices=("mar", "outline"), default="mar",
                         help="detection JSON: plan around the minimum-area rectangles (default) or outlines")
+    parser.add_argument("--nav2-image-anywhere", action="store_true",
+                        help="a nav2 map.yaml's image may lie outside the YAML's folder (default: refused)")
     parser.add_argument("--json", action="store_true", help="print the route as JSON")
     parser.add_argument("--plot", metavar="PNG", help="draw obstacles, clearance, start, goal and route into PNG")
 
 
 def run(args: argparse.Namespace) -> int:
+    # imported when the command runs: the CLI starts without loading numpy, OpenCV and the pipeline
+    from ..files import check_outputs
     from ..imageio import write_image
     from ..planning import PlanningMap, load_obstacles, plan
     from ..planning.ompl_planners import quiet
 
+    check_outputs({"--plot": args.plot}, {"--obstacles": args.obstacles}, images=("--plot",))
     quiet(bool(getattr(args, "verbose", False)))
-    obs = load_obstacles(args.obstacles, resolution=args.resolution, use=args.use)
+    obs = load_obstacles(args.obstacles, resolution=args.resolution, use=args.use,
+                         image_anywhere=args.nav2_image_anywhere)
     pm = PlanningMap(obs.polygons, robot_radius=args.radius, margin=args.margin, bounds=obs.bounds,
                      include=(args.start, args.goal))
     route = plan(pm, args.start, args.goal, planner=args.planner, time_limit=args.time_limit)

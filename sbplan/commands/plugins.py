@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import json
 
+from ..errors import PluginError
+
 HELP = "list the installed stages (kind, name, origin, description) and plugins that failed"
 
 
@@ -14,14 +16,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import warnings
-
+    # imported when the command runs: the CLI starts without loading numpy, OpenCV and the pipeline
     from .. import registry
 
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # failures are listed below instead
-        infos = registry.stages()
-        failures = registry.load_errors()
+    infos = registry.stages()
+    failures = registry.load_errors()  # listed below
     if args.json:
         print(json.dumps({
             "stages": [{"kind": s.kind, "name": s.name, "origin": s.origin, "description": s.description,
@@ -30,7 +29,7 @@ def run(args: argparse.Namespace) -> int:
             "symbols": registry.symbol_names(),
             "failures": [{"plugin": f.plugin, "origin": f.origin, "error": f.error} for f in failures],
         }, indent=2, default=str))
-        return 1 if failures else 0
+        return PluginError.exit_code if failures else 0
     rows = [("KIND", "NAME", "ORIGIN", "DESCRIPTION")] + [(s.kind, s.name, s.origin, s.description) for s in infos]
     widths = [max(len(r[i]) for r in rows) for i in range(3)]
     for r in rows:
@@ -44,4 +43,4 @@ def run(args: argparse.Namespace) -> int:
         print(f"\n{len(symbols)} candidate symbols: {', '.join(symbols)}")
     for f in failures:
         print(f"\nplugin {f.plugin!r} from {f.origin} failed to load: {f.error}")
-    return 1 if failures else 0
+    return PluginError.exit_code if failures else 0

@@ -12,12 +12,14 @@ import logging
 import os
 import time
 from dataclasses import replace
-from typing import Any
+from typing import Any, Unpack
 
 import numpy as np
 
-from ..errors import CameraMotionError, DetectionError
-from ..imageio import as_gray, load_image
+from ..contracts import (Binarizer, ContourApproximator, ContourExtractor, DescriptorMatcher, OccupancyMapper,
+                         StageChoices, array_of, call_stage, describe_value, stage_failure)
+from ..errors import CameraMotionError, ContourError, DetectionError, NoFloorError
+from ..imageio import ImageInput, as_gray, load_image
 from ..polygons import PolygonBatch, centroids, resample_complex, signed_areas
 from .bands import RowBands
 from .calibration.file import Calibration, load_calibration
@@ -51,6 +53,9 @@ SCRATCH_BROKEN_SHARE = 0.25
 #: Symbols whose grey-level centres refine the registration (spread over the grid): 24 pin it to
 #: about 0.05 px on the renderer's scenes at half the cost of all 50.
 REGISTRATION_SYMBOLS = 24
+#: The edge check may rescue at most as many cells as the matcher found symbols (or this many, on a
+#: mostly covered floor): more, and it would be deciding the cells alone.
+RESCUE_MIN = 4
 
 
 class Detector:
@@ -66,8 +71,10 @@ class Detector:
     processes whole frames.
     """
 
-    def __init__(self, calibration: Calibration, *, binarizer: Any = None, extractor: Any = None,
-                 approximator: Any = None, matcher: Any = None, mapper: Any = None, row_bands: bool = True,
+    def __init__(self, calibration: Calibration, *, binarizer: str | Binarizer | None = None,
+                 extractor: str | ContourExtractor | None = None, approximator: str | ContourApproximator | None = None,
+                 matcher: str | DescriptorMatcher | None = None, mapper: str | OccupancyMapper | None = None,
+                 row_bands: bool = True,
                  register: bool = True):
         self.calibration = cal = calibration
         self.binarizer = cal.stage("binarizer", binarizer)
@@ -123,7 +130,8 @@ class Detector:
         # its symbol's edge all around (sbplan.detection.outline_checks.edges_intact): where each reference
         # outline is read, and the step the reference showed there. Old calibrations have none.
         n_cells = len(cal.symbol_polygons)
-        self._edge_x = self._edge_y = self._edge_factors = None
+        self._edge_x: np.ndarray | None = None  # None: no edge check
+        self._edge_y = self._edge_factors = np.zeros((0, EDGE_SAMPLES))
         if cal.edge_contrast is not None and np.shape(cal.edge_contrast) == (n_cells, EDGE_SAMPLES) and n_cells:
             # (outlines traced in a reduced image lie up to a reduced pixel inside the ink's edge:
             # the probes reach as much farther)
@@ -151,8 +159,8 @@ class Detector:
                                          apply(matrix, self._symbol_corners[:, 0])).max() < 1.0:
             return cached[1]
         corners = self.work.to_work(apply(matrix, self._symbol_corners))
-        bands = RowBands.around(list(corners), self.work.work_shape, margin=self._band_margin / self.work.factor)
-        bands = bands if bands.fraction <= BANDS_WORTH_IT else None
+        around = RowBands.around(list(corners), self.work.work_shape, margin=self._band_margin / self.work.factor)
+        bands = around if around.fraction <= BANDS_WORTH_IT else None
         self._bands_cache = (matrix, bands)
         return bands
 
@@ -166,7 +174,7 @@ class Detector:
         ok = band >= 0
         return bool(ok.all() and (hi < bands.stops[band]).all() and (lo >= bands.starts[band]).all())
 
-    def find_cells(self, image: Any) -> CellDetection:
+    def find_cells(self, image: ImageInput) -> CellDetection:
         """Image in -> occupied cells out: the pipeline up to the mapper, for callers that need
         only the cells (and what :meth:`__call__` builds on).
 
@@ -203,8 +211,12 @@ class Detector:
             frame = self._symbols(gray, bands, lap)
             try:
                 motion = self._registered(gray, frame, hint, bands)
-            except CameraMotionError:
+            except CameraMotionError as exc:
                 if bands is None or attempt:
+                    # a dead camera or a dark room is not a moved camera: say which it is
+                    diagnosis = frame_diagnosis(gray)
+                    if diagnosis:
+                        raise NoFloorError(f"{diagnosis} ({len(frame[2])} symbols found)") from exc
                     raise
                 # the symbols may have left the bands laid out for the last pose: the whole frame
                 bands = None
@@ -248,8 +260,8 @@ class Detector:
                 xy = work.to_frame(xy)
                 if moved:
                     xy = motion.to_calibration(xy)
-                xy = xy.reshape(len(picked), SAMPLES, 2)
-                deviation, shift = samples_deviation(xy[..., 0], xy[..., 1], self.distance_map)
+                per_outline = xy.reshape(len(picked), SAMPLES, 2)
+                deviation, shift = samples_deviation(per_outline[..., 0], per_outline[..., 1], self.distance_map)
                 # the outline's shift was measured in calibration pixels; the frame's are scaled
                 shift = shift * motion.scale
                 straight = ~(deviation > cal.outline_tolerance_px)
@@ -277,6 +289,8 @@ class Detector:
             ok = np.zeros(len(hit), bool)
             ok[idx] = True
             matched, candidates = centres[ok], centres[~ok]
+        matched_count = int(found.sum())
+        rescued = 0
         if self._edge_x is not None and not found.all():
             # the cells called occupied whose symbol's edge still shows all around in the grey image,
             # but for short breaks where scratches cross it
@@ -301,14 +315,24 @@ class Detector:
                                                     self._edge_factors[missing[broken]],
                                                     max_break=limit[broken], gap=gap[broken])
             whole = missing[intact]
-            if len(whole):
+            rescued = len(whole)
+            if rescued > max(matched_count, RESCUE_MIN):
+                # The edge check rescues symbols the binary image spoiled; it does not find them.
+                # Deciding more cells than matching did, it would be answering alone.
+                raise DetectionError(
+                    f"the matcher ({self.matcher.name}) took only {matched_count} of {cal.symbols_expected} symbols "
+                    f"for the symbol, and the grey-level edge check would call {rescued} more free: the matcher or "
+                    "its threshold does not fit this floor (a broken or swapped matcher, a calibration made with "
+                    "another one, or symbols worn past recognition); recalibrate with the matcher you detect with")
+            if rescued:
                 found.ravel()[whole] = True
                 matched = np.concatenate([matched, self._cell_centres[whole]])
         lap("match")
         timings["total"] = (time.perf_counter() - t0) * 1e3
         if motion.warning:
             log.warning(motion.warning, extra={"data": {"camera": motion.to_json()}})
-        return CellDetection(~found, int(found.sum()), matched, candidates, timings, gray.shape, motion)
+        return CellDetection(~found, matched_count, matched, candidates, timings, gray.shape, motion,
+                             symbols_rescued=rescued)
 
     def _symbols(self, gray: np.ndarray, bands: RowBands | None, lap) -> tuple:
         """Binarize, extract, approximate and match one frame (at the working resolution): the
@@ -316,23 +340,40 @@ class Detector:
         centres and areas in the frame's pixels, their centres in working pixels, and the working
         image."""
         image = self.work.reduce(gray)
-        binary = self.binarizer.binarize_bands(image, bands) if bands is not None else self.binarizer.binarize(image)
+        # every stage is called through call_stage: a plugin's exception or broken result is a
+        # StageError naming it, checked by one comparison (or one sum) per call
+        if bands is not None:
+            binary = call_stage(self.binarizer, "binarize_bands", image, bands,
+                                returns=_mask_of(bands.stacked_shape))
+        else:
+            binary = call_stage(self.binarizer, "binarize", image, returns=_mask_of(image.shape))
         lap("binarize")
-        outer = self.extractor.extract_outer(binary)
+        outer = call_stage(self.extractor, "extract_outer", binary, returns=_sequence)
         lap("extract")
         # length_filter_steps's test, without its array round trip: one comparison per contour
         lo, hi = self._points_range
-        kept = [c for c in outer if lo <= len(c.points) <= hi]
-        polygons = self.approximator.approximate_many(kept)
+        try:
+            kept = [c for c in outer if lo <= len(c.points) <= hi]
+        except (AttributeError, TypeError):
+            raise stage_failure(self.extractor, "broke its contract: extract_outer() returned items that are "
+                                                "not Contours") from None
+        polygons = call_stage(self.approximator, "approximate_many", kept, returns=_sequence)
         if not isinstance(polygons, PolygonBatch):
             # a plugin's plain list: drop what is not a polygon, pack once for the vectorized steps
-            polygons = PolygonBatch.from_list([p for p in polygons if len(p) >= 3])
+            try:
+                polygons = PolygonBatch.from_list([p for p in polygons if len(p) >= 3])
+            except (ContourError, TypeError, ValueError) as exc:
+                raise stage_failure(self.approximator, "broke its contract: approximate_many() returned outlines "
+                                                       f"that are not (N, 2) finite points ({exc})") from None
         lap("approximate")
         hit = np.zeros(0, np.int64)
         centres, areas = np.zeros((0, 2)), np.zeros(0)
         if len(polygons):
-            desc = self.matcher.describe_many(polygons)
-            d = self.matcher.distance_matrix(desc, self.descriptor[None, :])[:, 0]
+            n = len(polygons)
+            desc = call_stage(self.matcher, "describe_many", polygons,
+                              returns=array_of((n, len(self.descriptor)), finite=True))
+            d = call_stage(self.matcher, "distance_matrix", desc, self.descriptor[None, :],
+                           returns=array_of((n, 1), finite=True))[:, 0]
             hit = np.flatnonzero(d < self.threshold)
             if len(hit):
                 centres, areas = centroids(polygons, on_zero_area="nan", return_areas=True)
@@ -379,13 +420,14 @@ class Detector:
             hi[:, 1] += dy
         return np.concatenate([lo, hi], axis=1)
 
-    def __call__(self, image: Any) -> Detection:
+    def __call__(self, image: ImageInput) -> Detection:
         """The whole detection: :meth:`find_cells`, then the occupancy image and the obstacles."""
         cal = self.calibration
         cells = self.find_cells(image)
         timings = {k: v for k, v in cells.timings_ms.items() if k != "total"}
         t = time.perf_counter()
-        occupancy = self.mapper.occupancy_image(cal.grid, cells.occupied, cells.image_shape)
+        occupancy = call_stage(self.mapper, "occupancy_image", cal.grid, cells.occupied, cells.image_shape,
+                               returns=array_of(tuple(cells.image_shape), kinds="u"))
         now = time.perf_counter()
         timings["map"] = (now - t) * 1e3
         obstacles = find_obstacles(occupancy, cells.occupied, cal.grid, to_world=cal.pixels_to_world)
@@ -398,7 +440,52 @@ class Detector:
                       extra={"data": {"timings_ms": timings, "symbols_found": cells.symbols_found,
                                       "occupied_cells": int(cells.occupied.sum()), "obstacles": len(obstacles)}})
         return Detection(cal, cells.occupied, cells.symbols_found, cells.matched_centres_px, occupancy,
-                         obstacles, timings, self.stage_names, cells.candidates_px, cells.camera)
+                         obstacles, timings, self.stage_names, cells.candidates_px, cells.camera,
+                         symbols_rescued=cells.symbols_rescued)
+
+
+def _mask_of(shape: tuple[int, int]):
+    """The binarizer's contract: a mask of ``shape`` (bool, or 0/1 integers)."""
+    def check(v: Any) -> str | None:
+        if isinstance(v, np.ndarray) and v.shape == shape and v.dtype.kind in "bui":
+            return None
+        return f"{describe_value(v)}, expected a mask of shape {shape}"
+    return check
+
+
+def _sequence(v: Any) -> str | None:
+    if isinstance(v, (list, tuple, PolygonBatch)):
+        return None
+    return f"{describe_value(v)}, expected a list"
+
+
+#: A frame whose grey levels (1st to 99th percentile) span fewer than this shows no floor.
+UNIFORM_LEVELS = 12
+#: A frame whose 99th percentile is below this is too dark to show the symbols.
+DARK_LEVEL = 40
+
+
+def frame_diagnosis(gray: np.ndarray) -> str | None:
+    """Why a frame may show no floor at all, for the operator, or None when it looks like a view
+    (then the registration's own message stands). Only asked when registration failed."""
+    step = max(1, int(np.sqrt(gray.size / 250_000)))
+    sample = gray[::step, ::step]
+    lo, hi = (float(v) for v in np.percentile(sample, [1, 99]))
+    if hi < DARK_LEVEL:
+        return (f"no floor in view: the frame is {'black' if hi < 2 else 'very dark'} (grey levels up to {hi:.0f} "
+                "of 255); check the light, the lens cover and the camera's exposure, then detect again")
+    if hi - lo < UNIFORM_LEVELS:
+        return (f"no floor in view: the frame is almost uniform (grey levels {lo:.0f} to {hi:.0f} of 255); check the "
+                "camera (lens covered, overexposed, cable), then detect again")
+    s = sample.astype(np.float32)
+    spread = float(s.std())
+    # neighbours of a real view are alike; in sensor noise or a broken signal they are as unlike
+    # as any two pixels
+    jump = float(np.abs(np.diff(s, axis=1)).mean())
+    if spread > 10 and jump > 0.8 * spread:
+        return ("no floor in view: the frame is noise (neighbouring pixels are unrelated); the camera's signal is "
+                "broken: check the camera and its cable, then detect again")
+    return None
 
 
 class _Picked(collections.abc.Sequence):
@@ -419,7 +506,8 @@ class _Picked(collections.abc.Sequence):
         return self.batch[int(self.indices[i])]
 
 
-def detect(image: Any, calibration: Calibration | str | os.PathLike, **stages: Any) -> Detection:
+def detect(image: ImageInput, calibration: Calibration | str | os.PathLike,
+           **stages: Unpack[StageChoices]) -> Detection:
     """Detect the occupied cells and obstacles of one image.
 
     Parameters

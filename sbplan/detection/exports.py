@@ -6,13 +6,17 @@ All writers are atomic. World coordinates are metres, x right along the columns,
 from __future__ import annotations
 
 import json
+import math
 import os
 from pathlib import Path
 
 import cv2
 import numpy as np
 
-from ..imageio import write_atomic, write_image
+from .. import limits
+from ..errors import InputError
+from ..files import write_atomic, write_file_set
+from ..imageio import as_gray, encode_image, write_image
 from ..polygons import signed_area
 from ..workspace import Georeference
 from .result import Detection
@@ -36,8 +40,6 @@ def overlay_image(image: np.ndarray, detection: Detection) -> np.ndarray:
 
     The detection's pixel coordinates are the calibration's; they are drawn where the camera's
     movement (``detection.camera``) puts them in this frame."""
-    from ..imageio import as_gray
-
     gray = as_gray(image)
     out = cv2.cvtColor(gray, cv2.COLOR_GRAY2BGR)
     grid = detection.calibration.grid
@@ -66,7 +68,8 @@ def overlay_image(image: np.ndarray, detection: Detection) -> np.ndarray:
         org = (int(cx - tw / 2), int(cy + tht / 2))
         cv2.putText(out, label, org, font, fs, _BLACK, th + 3 * scale, cv2.LINE_AA)
         cv2.putText(out, label, org, font, fs, _WHITE, th, cv2.LINE_AA)
-    text = (f"{detection.symbols_found}/{detection.symbols_expected} symbols, "
+    rescued = f" (+{detection.symbols_rescued} by edge)" if detection.symbols_rescued else ""
+    text = (f"{detection.symbols_found}/{detection.symbols_expected} symbols{rescued}, "
             f"{len(detection.occupied_cells)} occupied cells, {len(detection.obstacles)} obstacles")
     (tw, th), base = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, 0.55 * scale, scale)
     banner = out[: th + base + 10 * scale, : tw + 16 * scale]
@@ -136,6 +139,26 @@ def write_geojson(path: str | os.PathLike, detection: Detection, *, georeference
     return write_atomic(path, json.dumps(geojson(detection, georeference=georeference), indent=1) + "\n")
 
 
+#: What a nav2 map folder written by :func:`write_nav2` holds.
+NAV2_FILES = ("map.yaml", "map.pgm")
+
+
+def nav2_resolution(resolution: float | None, pitch_m: tuple[float, float]) -> float:
+    """The nav2 map's metres per pixel: ``resolution`` checked (finite, > 0), or a tenth of the
+    smaller pitch. Raises InputError naming ``--nav2-resolution``."""
+    if resolution is None:
+        return min(pitch_m) / 10.0
+    try:
+        res = float(resolution)
+    except (TypeError, ValueError):
+        raise InputError(f"nav2 resolution (--nav2-resolution): expected metres per pixel, "
+                         f"got {resolution!r}") from None
+    if not (math.isfinite(res) and res > 0):
+        raise InputError(f"nav2 resolution (--nav2-resolution): must be a positive number of metres per pixel, "
+                         f"got {resolution!r}")
+    return res
+
+
 def nav2_map(detection: Detection, *, resolution: float | None = None) -> tuple[np.ndarray, dict]:
     """A ROS 2 nav2 ``map_server`` map of the floor: (image (H, W) uint8, yaml fields).
 
@@ -146,11 +169,21 @@ def nav2_map(detection: Detection, *, resolution: float | None = None) -> tuple[
     expects; ``origin`` is the world pose of the bottom-left pixel's corner. ``free_thresh`` is
     0.196 (map_server's classic value), below 205's occupancy (50/255 = 0.1961), so map_server
     loads 205 as unknown (with nav2 map_saver's 0.25 it would load as free).
+
+    Raises
+    ------
+    InputError
+        ``resolution`` is not a positive finite number.
+    LimitError
+        The map would have more pixels than the ``map_pixels`` limit (:mod:`sbplan.limits`).
     """
     cal = detection.calibration
     xmin, ymin, xmax, ymax = cal.world_bounds()
-    res = resolution or min(cal.workspace.pitch_m) / 10.0
-    width, height = int(np.ceil((xmax - xmin) / res - 1e-9)), int(np.ceil((ymax - ymin) / res - 1e-9))
+    res = nav2_resolution(resolution, cal.workspace.pitch_m)
+    fw, fh = np.ceil((xmax - xmin) / res - 1e-9), np.ceil((ymax - ymin) / res - 1e-9)
+    limits.check("map_pixels", float(fw) * float(fh),
+                 f"a nav2 map of {fw:.0f} x {fh:.0f} pixels at {res:g} m per pixel", "give a coarser --nav2-resolution")
+    width, height = int(fw), int(fh)
     image = np.full((height, width), NAV2_UNKNOWN, np.uint8)
     # free: the pixels wholly on the floor (to a billionth of its size: floating-point rounding)
     eps = 1e-9 * max(xmax - xmin, ymax - ymin)
@@ -172,12 +205,11 @@ def nav2_map(detection: Detection, *, resolution: float | None = None) -> tuple[
     return image, meta
 
 
-def write_nav2(folder: str | os.PathLike, detection: Detection, *, resolution: float | None = None) -> Path:
-    """Write ``map.yaml`` and ``map.pgm`` into ``folder``; returns the YAML's path."""
-    folder = Path(folder)
+def nav2_files(detection: Detection, *, resolution: float | None = None) -> dict[str, bytes | str]:
+    """The nav2 map's files, ``{"map.yaml": text, "map.pgm": bytes}`` (see :func:`nav2_map`)."""
     image, meta = nav2_map(detection, resolution=resolution)
-    write_image(folder / meta["image"], image, text={"sbplan": "nav2-map", "Description": NAV2_IMAGE_NOTE})
-    return write_atomic(folder / "map.yaml", nav2_yaml(meta))
+    return {"map.yaml": nav2_yaml(meta),
+            meta["image"]: encode_image(meta["image"], image, text={"sbplan": "nav2-map", "Description": NAV2_IMAGE_NOTE})}
 
 
 def nav2_yaml(meta: dict) -> str:
@@ -187,3 +219,11 @@ def nav2_yaml(meta: dict) -> str:
              f"occupied_thresh: {meta['occupied_thresh']}", f"free_thresh: {meta['free_thresh']}"]
     return "\n".join(lines) + "\n"
 
+
+def write_nav2(folder: str | os.PathLike, detection: Detection, *, resolution: float | None = None) -> Path:
+    """Write ``map.yaml`` and ``map.pgm`` into ``folder`` as one unit (:func:`sbplan.files.write_file_set`:
+    a reader sees the old pair or the new one, never a mix); returns the YAML's path.
+
+    ``folder`` may hold only those two files: sbplan replaces the whole folder."""
+    folder = write_file_set(folder, nav2_files(detection, resolution=resolution), names=NAV2_FILES)
+    return folder / "map.yaml"

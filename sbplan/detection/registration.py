@@ -305,8 +305,8 @@ def register_pairs(centres_px: np.ndarray, grid: "Grid", image_shape: tuple[int,
     inliers = ok[resid <= inlier_px]
     if len(inliers) < max(MIN_SYMBOLS, MIN_INLIER_SHARE * n_paired):
         raise CameraMotionError(f"cannot estimate the camera's movement: only {len(inliers)} of the {n_paired} "
-                                f"symbols found near their cells move together; the view changed; "
-                                f"recalibrate on the empty floor (sbplan calibrate)")
+                                f"symbols found near their cells move together; the view changed or the calibration "
+                                f"is another camera's or floor's; recalibrate on the empty floor (sbplan calibrate)")
     matrix, keep, rms = _trimmed_fit(ref[flat[inliers]], centres[inliers])
     inliers = inliers[keep]
     matrix, ambiguous = _resolve_pitch(matrix, _pitch_ambiguity(flat[inliers], grid), grid,
@@ -381,7 +381,8 @@ def _few_symbols(found: np.ndarray, cells: np.ndarray, hint: np.ndarray, image_s
             f"compensated; recalibrate with 'sbplan calibrate REFERENCE.png' on the empty floor")
     raise CameraMotionError(
         f"cannot estimate the camera's movement: {n_found} symbol{'s' if n_found != 1 else ''} found "
-        f"(at least {MIN_SYMBOLS} needed); the view changed, the camera failed or the floor is covered; "
+        f"(at least {MIN_SYMBOLS} needed); the view changed, the camera failed, the floor is covered or the "
+        f"calibration is another floor's; "
         f"recalibrate on the empty floor (sbplan calibrate)")
 
 
@@ -505,7 +506,8 @@ def _motion(matrix: np.ndarray, rms: float, used: int, model: str, image_shape, 
     if rms > MAX_RESIDUAL_PX:
         raise CameraMotionError(
             f"cannot trust the camera's movement: the {used} symbols found fit it only within {rms:.2f} px "
-            f"(at most {MAX_RESIDUAL_PX} px); the view changed; recalibrate on the empty floor (sbplan calibrate)")
+            f"(at most {MAX_RESIDUAL_PX} px); the view changed or the calibration is another camera's or floor's; "
+            f"recalibrate on the empty floor (sbplan calibrate)")
     if movement > MAX_MOVEMENT_PITCH * pitch:
         raise CameraMotionError(
             f"camera moved by {movement:.1f} px since calibration (shift ({shift[0]:+.1f}, {shift[1]:+.1f}) px, "

@@ -17,7 +17,8 @@ FORMAT = "sbplan.detection/1"
 @dataclass(frozen=True, eq=False)
 class Detection:
     """The result of one detection: :class:`CellDetection`'s ``occupied``, ``symbols_found``,
-    ``matched_centres_px`` and ``candidates_px``, and what is built on them.
+    ``symbols_rescued``, ``matched_centres_px``, ``candidates_px`` and ``camera``, and what is
+    built on them.
 
     Attributes
     ----------
@@ -41,6 +42,7 @@ class Detection:
     stages: dict[str, str]
     candidates_px: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     camera: CameraMotion = field(default_factory=CameraMotion.none)
+    symbols_rescued: int = 0
 
     @property
     def occupied_cells(self) -> list[tuple[int, int]]:
@@ -58,6 +60,7 @@ class Detection:
             "grid": {"rows": cal.grid.rows, "cols": cal.grid.cols},
             "symbols_expected": self.symbols_expected,
             "symbols_found": self.symbols_found,
+            "symbols_rescued": self.symbols_rescued,
             "occupied_cells": [list(c) for c in self.occupied_cells],
             "free_cells": int((~self.occupied).sum()),
             "obstacles": [o.to_json() for o in self.obstacles],
@@ -85,9 +88,17 @@ class CellDetection:
     occupied : ndarray of shape (rows, cols), bool
         True where the cell's symbol is missing; ``[row, col]``, row 0 at the top.
     symbols_found : int
-    matched_centres_px : ndarray of shape (n, 2)
-        Centres ``(x, y)`` of the symbols found in their cells (the reference symbol's centre for a
-        cell the outline checks failed but whose symbol's edge shows all around in the grey image).
+        Symbols the matcher took for the reference symbol and the outline checks kept whole, in
+        their cells: only matched symbols count.
+    symbols_rescued : int
+        Cells whose symbol did not match or failed the outline checks in the binary image but
+        whose edge the grey image still shows all around (a shadow or glare spoiled the binary
+        image): free cells that matching did not find. Free cells = found + rescued. The edge check
+        rescues at most as many cells as matching found (else a DetectionError: the matcher does
+        not fit).
+    matched_centres_px : ndarray of shape (found + rescued, 2)
+        Centres ``(x, y)`` of the symbols found in their cells, then those of the rescued cells
+        (their reference symbol's centre).
     candidates_px : ndarray of shape (m, 2)
         Centres of outlines that matched the symbol's shape but were rejected (off the grid, or
         grown, shrunk or bent against their cell's reference outline).
@@ -106,3 +117,4 @@ class CellDetection:
     timings_ms: dict[str, float]
     image_shape: tuple[int, int]
     camera: CameraMotion = field(default_factory=CameraMotion.none)
+    symbols_rescued: int = 0

@@ -6,7 +6,7 @@ All points are world coordinates ``(x, y)`` (metres, or pixels with a scale), y 
 from __future__ import annotations
 
 import math
-from typing import Any, Iterable, Sequence
+from typing import Any, Iterable, Sequence, cast
 
 import numpy as np
 import shapely
@@ -19,6 +19,9 @@ from ..errors import InputError
 #: corners). A limit of 4 bevels only very sharp spikes; the result always contains the round
 #: buffer, so routes around it keep at least the requested clearance.
 MITRE_LIMIT = 4.0
+#: Largest coordinate (map units) an obstacle may have: squares of coordinates stay finite and a
+#: map's tolerance (1e-6 of its size) stays above double precision's rounding.
+MAX_COORDINATE = 1e12
 
 _F64 = np.dtype(float)
 
@@ -63,6 +66,8 @@ def as_polygons(obstacles: Iterable, *, name: str = "obstacles") -> list[Polygon
         Each an obstacle outline ``(x, y)``; multipolygons are split into their parts.
     """
     out: list[Polygon] = []
+    if isinstance(obstacles, (str, bytes)) or not hasattr(obstacles, "__iter__"):
+        raise InputError(f"{name}: expected a list of polygons or (M, 2) point arrays, got {type(obstacles).__name__}")
     for i, ob in enumerate(obstacles):
         if isinstance(ob, MultiPolygon):
             parts = list(ob.geoms)
@@ -82,14 +87,29 @@ def as_polygons(obstacles: Iterable, *, name: str = "obstacles") -> list[Polygon
             coords = np.asarray(p.exterior.coords)
             if not np.isfinite(coords).all():
                 raise InputError(f"{name}[{i}]: coordinates must be finite")
+            # beyond this the planner's products of coordinates overflow or lose the tolerance
+            if np.abs(coords).max() > MAX_COORDINATE or not np.isfinite(p.area):
+                raise InputError(f"{name}[{i}]: coordinates reach {np.abs(coords).max():.3g}, beyond the "
+                                 f"{MAX_COORDINATE:g} the planner's arithmetic holds; clip obstacles to the workspace")
             if not p.is_valid:
                 p = shapely.make_valid(p)
                 parts2 = [g for g in getattr(p, "geoms", [p]) if isinstance(g, Polygon)]
-                out.extend(g for g in parts2 if g.area > 0)
+                out.extend(g for g in parts2 if _has_area(g))
                 continue
-            if p.area > 0:
+            if _has_area(p):
                 out.append(p)
     return out
+
+
+#: A polygon whose area is below this fraction of its bounding box's square has no area the
+#: planner can use: GEOS's buffer of a triangle 1e-200 thick misses points within the radius.
+DEGENERATE_AREA = 1e-100
+
+
+def _has_area(p: Polygon) -> bool:
+    """An area the planner's arithmetic can see (zero-area and underflowing slivers are dropped)."""
+    x0, y0, x1, y1 = p.bounds
+    return p.area > DEGENERATE_AREA * max(x1 - x0, y1 - y0) ** 2
 
 
 def enlarge(polygons: Sequence[Polygon], distance: float) -> list[Polygon]:
@@ -100,5 +120,33 @@ def enlarge(polygons: Sequence[Polygon], distance: float) -> list[Polygon]:
         q = p.buffer(distance, join_style="mitre", mitre_limit=MITRE_LIMIT) if distance > 0 else p
         for g in getattr(q, "geoms", [q]):
             if isinstance(g, Polygon) and not g.is_empty and g.area > 0:
-                out.append(orient(g.simplify(0.0), 1.0))
+                out.append(orient(cast(Polygon, g.simplify(0.0)), 1.0))  # simplify(0) keeps a polygon
     return out
+
+
+def check_size(polygons: list[Polygon]) -> None:
+    """The obstacle_vertices limit (:mod:`sbplan.limits`): the visibility cache grows with the
+    square of the obstacles' vertices. Raises LimitError."""
+    from .. import limits
+
+    n = int(shapely.get_num_coordinates(polygons).sum()) if polygons else 0
+    limits.check("obstacle_vertices", n, f"obstacles with {n:,} vertices",
+                 "simplify the obstacles (or clean a noisy occupancy image)")
+
+
+#: Obstacles may reach this many workspace sizes from its centre: farther, the rounding of their
+#: coordinates (2.2e-16 of them) nears the map's tolerance (1e-6 of its size).
+MAX_REACH = 1e9
+
+
+def check_extent(polygons: list[Polygon], bounds: Sequence[float]) -> None:
+    """Refuse obstacles reaching farther from the workspace than double precision holds for it
+    (InputError)."""
+    if not polygons:
+        return
+    size = max(bounds[2] - bounds[0], bounds[3] - bounds[1])
+    cx, cy = (bounds[0] + bounds[2]) / 2, (bounds[1] + bounds[3]) / 2
+    reach = float(np.max(np.abs(shapely.bounds(polygons) - [cx, cy, cx, cy])))
+    if not reach <= MAX_REACH * size:
+        raise InputError(f"obstacles: reach {reach:.3g} from the workspace's centre, more than {MAX_REACH:g} times "
+                         f"its size {size:.3g}: beyond double precision for this map; clip them to the workspace")

@@ -11,18 +11,21 @@ import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
-import cv2
 import numpy as np
 import shapely
 import shapely.affinity
 import yaml
 from shapely.geometry import Polygon, box
 
+from .. import limits
 from ..errors import ImageError, InputError, MapFormatError
-from ..imageio import as_gray, image_text, load_image
+from ..imageio import as_gray, image_text, load_image, read_image
 from ..workspace import Georeference
+
+if TYPE_CHECKING:
+    from ..detection import Detection
 
 
 @dataclass
@@ -35,7 +38,8 @@ class ObstacleSet:
     source: str = ""
 
 
-def load_obstacles(path: Any, *, resolution: float | None = None, use: str = "mar") -> ObstacleSet:
+def load_obstacles(path: Any, *, resolution: float | None = None, use: str = "mar",
+                   image_anywhere: bool = False) -> ObstacleSet:
     """Load obstacles from a file, by its type.
 
     Parameters
@@ -54,25 +58,43 @@ def load_obstacles(path: Any, *, resolution: float | None = None, use: str = "ma
         bottom-left corner, y up (nav2's frame).
     use : "mar" | "outline"
         Which polygon of a detection to plan around.
+    image_anywhere : bool
+        A nav2 map.yaml's ``image:`` may name a file outside the YAML's folder (by default it must
+        lie inside it: a map file is data, not a key to the file system).
+
+    Raises
+    ------
+    MapFormatError
+        Missing, unreadable or malformed file, or a value that is out of range.
+    LimitError
+        An occupancy image with more runs of occupied pixels than the ``obstacle_vertices`` limit.
     """
+    if resolution is not None and not (isinstance(resolution, (int, float)) and math.isfinite(resolution)
+                                       and resolution > 0):
+        raise InputError(f"resolution (--resolution): must be a positive number of metres per pixel, "
+                         f"got {resolution!r}")
     p = Path(path)
     if not p.exists():
         raise MapFormatError(f"{p}: no such file")
     if p.is_dir():
         raise MapFormatError(f"{p}: is a folder, not an obstacle file")
+    if not p.is_file():
+        raise MapFormatError(f"{p}: is not a regular file (a device, FIFO or socket)")
     ext = p.suffix.lower()
     if ext in (".json", ".geojson"):
         try:
             data = json.loads(p.read_text(encoding="utf-8"))
         except (UnicodeDecodeError, json.JSONDecodeError) as exc:
             raise MapFormatError(f"{p}: not valid JSON ({exc})") from None
+        except RecursionError:
+            raise MapFormatError(f"{p}: not an obstacle file (nested too deeply)") from None
         if isinstance(data, dict) and data.get("type") == "FeatureCollection":
             return _from_geojson(data, str(p))
         if isinstance(data, dict) and str(data.get("format", "")).startswith("sbplan.detection"):
             return detection_obstacles(data, use=use, source=str(p))
         raise MapFormatError(f"{p}: neither a GeoJSON FeatureCollection nor an sbplan detection result")
     if ext in (".yaml", ".yml"):
-        return _from_nav2(p)
+        return _from_nav2(p, image_anywhere=image_anywhere)
     _refuse_non_map(p)
     try:
         img = load_image(p)
@@ -82,7 +104,7 @@ def load_obstacles(path: Any, *, resolution: float | None = None, use: str = "ma
     if not math.isfinite(res) or res <= 0:
         raise MapFormatError(f"resolution: must be > 0, got {resolution!r}")
     occ = img < 128
-    return ObstacleSet(occupancy_polygons(occ, resolution=res),
+    return ObstacleSet(occupancy_polygons(occ, resolution=res, source=str(p)),
                        (0.0, 0.0, img.shape[1] * res, img.shape[0] * res), str(p))
 
 
@@ -124,7 +146,7 @@ def _poly(coords: Any, where: str) -> Polygon:
     return Polygon(a)
 
 
-def detection_obstacles(detection: Any, *, use: str = "mar", source: str = "") -> ObstacleSet:
+def detection_obstacles(detection: Detection | dict[str, Any], *, use: str = "mar", source: str = "") -> ObstacleSet:
     """The obstacles of a detection result, as the planner takes them: the one place that says
     which polygons of a detection are obstacles (``sbplan demo``, the TUI and
     :func:`load_obstacles` all come here).
@@ -202,7 +224,8 @@ def _from_geojson(data: dict, src: str) -> ObstacleSet:
     polys = [p for k, p in items if k == "mar"] if kinds else [p for _, p in items]
     if kinds and not polys:
         polys = [p for _, p in items]
-    meta = data.get("sbplan") if isinstance(data.get("sbplan"), dict) else {}
+    meta = data.get("sbplan")
+    meta = meta if isinstance(meta, dict) else {}
     if meta.get("georeference") is not None:
         # WGS84 lon/lat written by sbplan detect on a georeferenced floor: back to the floor's metres
         geo = Georeference.from_json(meta["georeference"], where=f"{src}: sbplan.georeference")
@@ -214,7 +237,8 @@ def _read_yaml(p: Path) -> dict:
     try:
         data = yaml.safe_load(p.read_text(encoding="utf-8", errors="replace"))
     except (yaml.YAMLError, ValueError, RecursionError) as exc:
-        raise MapFormatError(f"{p}: not valid YAML ({' '.join(str(exc).split())})") from None
+        text = " ".join(str(exc).split())
+        raise MapFormatError(f"{p}: not valid YAML ({text[:160]})") from None
     if not isinstance(data, dict):
         raise MapFormatError(f"{p}: not a nav2 map.yaml (expected a mapping)")
     return data
@@ -281,49 +305,62 @@ def map_server_values(image: np.ndarray, *, mode: str = "trinary", negate: bool 
     return out
 
 
-def _read_map_image(path: Path) -> np.ndarray:
-    if not path.is_file():
-        raise MapFormatError(f"{path}: no such map image")
-    data = np.fromfile(str(path), dtype=np.uint8)
-    image = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
-    if image is None or image.size == 0:
-        raise MapFormatError(f"{path}: not an image OpenCV can read")
-    return image
+def _nav2_number(p: Path, data: dict, key: str, default: Any = None) -> float:
+    v = data.get(key, default)
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        raise MapFormatError(f"{p}: {key} must be a finite number, got {v!r}")
+    return float(v)
 
 
-def _from_nav2(p: Path) -> ObstacleSet:
+def _from_nav2(p: Path, *, image_anywhere: bool = False) -> ObstacleSet:
     """A nav2 map: the cells map_server does not load as free (:func:`map_server_values`:
     occupied, unknown, or a value in between) are the obstacles."""
     data = _read_yaml(p)
+    if not {"image", "resolution", "origin"} & set(map(str, data)):
+        raise MapFormatError(f"{p}: not a nav2 map.yaml (none of the keys image, resolution, origin)")
     for k in ("image", "resolution", "origin"):
         if k not in data:
             raise MapFormatError(f"{p}: nav2 map.yaml lacks {k!r}")
-    try:
-        res = float(data["resolution"])
-        origin = [float(v) for v in data["origin"]]
-        negate = int(data.get("negate", 0))
-        occ_t = float(data.get("occupied_thresh", 0.65))
-        free_t = float(data.get("free_thresh", 0.196))
-    except (TypeError, ValueError, OverflowError):
-        raise MapFormatError(f"{p}: resolution, origin, negate and thresholds must be numbers") from None
-    if not math.isfinite(res) or res <= 0 or len(origin) < 2:
-        raise MapFormatError(f"{p}: resolution must be > 0 and origin [x, y, yaw]")
+    res = _nav2_number(p, data, "resolution")
+    if res <= 0:
+        raise MapFormatError(f"{p}: resolution must be > 0 metres per pixel, got {res:g}")
+    origin_raw = data["origin"]
+    if not isinstance(origin_raw, list) or not 2 <= len(origin_raw) <= 3:
+        raise MapFormatError(f"{p}: origin must be [x, y, yaw], got {origin_raw!r}")
+    origin = [_nav2_number(p, {"origin": v}, "origin") for v in origin_raw]
     yaw = origin[2] if len(origin) > 2 else 0.0
-    if not all(math.isfinite(v) for v in origin):
-        raise MapFormatError(f"{p}: origin [x, y, yaw] must be finite numbers")
+    negate = data.get("negate", 0)
+    if isinstance(negate, str) or negate not in (0, 1):
+        raise MapFormatError(f"{p}: negate must be 0 or 1, got {negate!r}")
+    negate = int(negate)
+    occ_t = _nav2_number(p, data, "occupied_thresh", 0.65)
+    free_t = _nav2_number(p, data, "free_thresh", 0.196)
+    if not 0.0 <= free_t < occ_t <= 1.0:
+        raise MapFormatError(f"{p}: thresholds must satisfy 0 <= free_thresh < occupied_thresh <= 1, "
+                             f"got free_thresh {free_t:g}, occupied_thresh {occ_t:g}")
     mode = data.get("mode", "trinary")
-    if not isinstance(data["image"], str) or not data["image"]:
-        raise MapFormatError(f"{p}: image must name the map's image file")
-    img_path = (p.parent / data["image"]).resolve()
+    if mode not in ("trinary", "scale", "raw"):
+        raise MapFormatError(f"{p}: mode must be trinary, scale or raw, got {mode!r}")
+    image = data["image"]
+    if not isinstance(image, str) or not image.strip():
+        raise MapFormatError(f"{p}: image must be a file name, got {image!r}")
+    folder = p.parent.resolve()
+    img_path = (folder / image).resolve()
+    if not image_anywhere and folder not in img_path.parents:
+        raise MapFormatError(f"{p}: image {image!r} lies outside the map's folder {folder}; move it beside "
+                             "map.yaml (or allow it: --nav2-image-anywhere, image_anywhere=True)")
     try:
-        values = map_server_values(_read_map_image(img_path), mode=mode, negate=bool(negate),
-                                   occupied_thresh=occ_t, free_thresh=free_t)
+        img = read_image(img_path)
+    except ImageError as exc:
+        raise MapFormatError(str(exc)) from None
+    try:
+        values = map_server_values(img, mode=mode, negate=bool(negate), occupied_thresh=occ_t, free_thresh=free_t)
     except MapFormatError as exc:
         raise MapFormatError(f"{p}: {exc}") from None
     occupied = values != FREE
     h, w = occupied.shape
     if abs(yaw) <= 1e-9:
-        polys = occupancy_polygons(occupied, resolution=res, origin=(origin[0], origin[1]))
+        polys = occupancy_polygons(occupied, resolution=res, origin=(origin[0], origin[1]), source=str(p))
         bounds = (origin[0], origin[1], origin[0] + w * res, origin[1] + h * res)
         return ObstacleSet(polys, bounds, str(p))
     polys, bounds = _rotated_map(occupied, res, origin[0], origin[1], yaw)
@@ -339,10 +376,12 @@ def _rotated_map(occupied: np.ndarray, res: float, ox: float, oy: float, yaw: fl
     c, s_ = math.cos(yaw), math.sin(yaw)
     m = [c, -s_, s_, c, ox, oy]  # shapely's affine [a, b, d, e, xoff, yoff]: x' = a x + b y + xoff
     h, w = occupied.shape
-    polys = [shapely.affinity.affine_transform(q, m) for q in occupancy_polygons(occupied, resolution=res)]
+    polys = [shapely.affinity.affine_transform(q, m) for q in occupancy_polygons(occupied, resolution=res,
+                                                                                  source="map")]
     extent = shapely.affinity.affine_transform(box(0.0, 0.0, w * res, h * res), m)
-    bounds = tuple(float(v) for v in extent.bounds)
-    outside = box(*bounds).difference(extent)
+    x0, y0, x1, y1 = (float(v) for v in extent.bounds)
+    bounds = (x0, y0, x1, y1)
+    outside = box(x0, y0, x1, y1).difference(extent)
     # Drop the rounding slivers left where the image is (nearly) axis-aligned (yaw near k pi/2).
     tiny = 1e-9 * extent.area
     polys += [q for q in getattr(outside, "geoms", [outside]) if isinstance(q, Polygon) and q.area > tiny]
@@ -350,18 +389,27 @@ def _rotated_map(occupied: np.ndarray, res: float, ox: float, oy: float, yaw: fl
 
 
 def occupancy_polygons(occupied: np.ndarray, *, resolution: float = 1.0,
-                       origin: tuple[float, float] = (0.0, 0.0)) -> list[Polygon]:
+                       origin: tuple[float, float] = (0.0, 0.0), source: str = "occupancy image") -> list[Polygon]:
     """Occupied pixels as exact polygons (with holes): the union of :func:`occupancy_rectangles`,
     collinear vertices removed. Same frame and parameters as :func:`occupancy_rectangles`.
 
     Merged walls have fewer edges than their rectangles (the maze: 160 instead of 260), and no
     shared inner edges or T-junction vertices for the planner to test.
+
+    Raises LimitError when the image has more runs of occupied pixels than the
+    ``obstacle_vertices`` limit (:mod:`sbplan.limits`): merging them would take minutes (a noisy
+    image, not a map).
     """
+    occ = np.asarray(occupied, bool)
+    runs = int(np.count_nonzero(np.diff(occ.astype(np.int8), axis=-1, prepend=0) == 1)) if occ.ndim else 0
+    limits.check("obstacle_vertices", runs, f"{source}: {runs:,} runs of occupied pixels",
+                 "is it noisy? clean it (a morphological opening) or give a coarser map")
     rects = occupancy_rectangles(occupied, resolution=resolution, origin=origin)
     if not rects:
         return []
     u = shapely.union_all(rects)
-    return [g.simplify(0.0) for g in getattr(u, "geoms", [u]) if isinstance(g, Polygon) and g.area > 0]
+    # (simplify(0) drops collinear vertices: a polygon stays a polygon)
+    return [cast(Polygon, g.simplify(0.0)) for g in getattr(u, "geoms", [u]) if isinstance(g, Polygon) and g.area > 0]
 
 
 def occupancy_rectangles(occupied: np.ndarray, *, resolution: float = 1.0,

@@ -17,8 +17,10 @@ import shapely
 from shapely.geometry import LineString, Point, Polygon
 
 from .. import registry
+from ..contracts import Planner, call_stage, describe_value
 from ..errors import InputError
 from .geometry import as_point, as_polygons, nonneg
+from .loaders import ObstacleSet
 from .planning_map import PlanningMap
 from .route import Problem, Route
 
@@ -86,15 +88,15 @@ def _map_for(obstacles: Any, start: np.ndarray, goal: np.ndarray, robot_radius: 
                                              include=(start, goal)))
 
 
-def plan(obstacles: Any, start: Any, goal: Any, *, robot_radius: float | None = None, planner: Any = "aux-corner",
+def plan(obstacles: Any, start: Any, goal: Any, *, robot_radius: float | None = None, planner: str | Planner = "aux-corner",
          bounds: Sequence[float] | None = None, time_limit: float = 1.0, margin: float | None = None) -> Route:
     """Plan a collision-free route for a disc robot among polygonal obstacles.
 
     Parameters
     ----------
-    obstacles : iterable of shapely Polygon / (M, 2) arrays ``(x, y)``, or a PlanningMap
+    obstacles : iterable of shapely Polygon / (M, 2) arrays ``(x, y)``, a PlanningMap or an ObstacleSet
         Real obstacles; a PlanningMap (or repeated calls with the same obstacles) reuses the
-        visibility cache.
+        visibility cache; an ObstacleSet (``load_obstacles``) gives its bounds too.
     start, goal : (x, y)
     robot_radius, margin : float, >= 0
         Required (margin: default 0) with obstacles; with a PlanningMap, the map's own (a value
@@ -113,18 +115,36 @@ def plan(obstacles: Any, start: Any, goal: Any, *, robot_radius: float | None = 
     Raises
     ------
     OutOfBoundsError, StartInObstacleError, GoalInObstacleError, NoRouteError, InputError
+        As their names say; InputError also for coordinates beyond the planner's precision.
+    LimitError
+        More obstacle vertices than the ``obstacle_vertices`` limit (:mod:`sbplan.limits`).
+    StageError
+        The planner stage raised or returned something other than a finite Route.
     """
     for name, v in (("robot_radius", robot_radius), ("margin", margin)):
         if v is not None:
             nonneg(v, name)
     tl = nonneg(time_limit, "time_limit")
     s, g = as_point(start, "start")[0], as_point(goal, "goal")[0]
+    if isinstance(obstacles, ObstacleSet):  # what load_obstacles gives: its polygons, and its bounds
+        bounds = obstacles.bounds if bounds is None else bounds
+        obstacles = obstacles.polygons
     stage = registry.planner(planner)
     pm = _map_for(obstacles, s, g, robot_radius, margin, bounds)
-    return stage.solve(Problem(pm, s, g), time_limit=tl)
+    return call_stage(stage, "solve", Problem(pm, s, g), time_limit=tl, returns=route_problem)
 
 
-def replan(route: Route, position: Any, new_obstacles: Any, *, planner: Any = None,
+def route_problem(v: Any) -> str | None:
+    """The planner's contract for :func:`~sbplan.contracts.call_stage`: a Route with finite
+    waypoints (a route through overflowed geometry is never called exact)."""
+    if not isinstance(v, Route):
+        return f"{describe_value(v)}, expected a Route"
+    if not len(v.waypoints) or not (np.isfinite(v.waypoints).all() and np.isfinite(v.length)):
+        return "a route with no or non-finite waypoints"
+    return None
+
+
+def replan(route: Route, position: Any, new_obstacles: Any, *, planner: str | Planner | None = None,
            time_limit: float = 1.0) -> Route:
     """Update a route after new obstacles appeared, from the robot's current position.
 
@@ -169,7 +189,9 @@ def replan(route: Route, position: Any, new_obstacles: Any, *, planner: Any = No
     if not touched:
         return Route(remaining, status=route.status, planner=route.planner, time_s=time.perf_counter() - t0,
                      replanned=False, map=pm, goal=route.goal)
-    out = stage.solve(Problem(pm, p, route.goal), time_limit=tl)
+    if route.goal is None:  # only an empty route has none, and an empty route touches nothing
+        raise InputError("route: has no goal to replan to")
+    out = call_stage(stage, "solve", Problem(pm, p, route.goal), time_limit=tl, returns=route_problem)
     out.time_s = time.perf_counter() - t0
     out.replanned = True
     return out

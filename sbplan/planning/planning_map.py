@@ -15,7 +15,7 @@ from shapely.ops import nearest_points, unary_union
 
 from ..errors import GoalInObstacleError, InputError, OutOfBoundsError, StartInObstacleError
 from .aux_corner import solve_aux_corner
-from .geometry import as_polygons, enlarge, nonneg
+from .geometry import MAX_COORDINATE, as_polygons, check_extent, check_size, enlarge, nonneg
 from .vismap import VisibilityMap
 
 if TYPE_CHECKING:
@@ -57,7 +57,11 @@ class PlanningMap:
                  bounds: Sequence[float] | None = None, include: Sequence[Any] = ()):
         r = nonneg(robot_radius, "robot_radius")
         m = nonneg(margin, "margin")
+        if r + m > MAX_COORDINATE:  # enlarging by it would overflow like a coordinate would
+            raise InputError(f"robot_radius + margin: {r + m:g} is beyond the {MAX_COORDINATE:g} the planner's "
+                             "arithmetic holds")
         self.obstacles = as_polygons(obstacles)
+        check_size(self.obstacles)
         self.robot_radius, self.margin = r, m
         if bounds is None:
             try:
@@ -81,6 +85,7 @@ class PlanningMap:
             raise InputError(f"bounds: expected finite (xmin, ymin, xmax, ymax) with xmin < xmax, ymin < ymax, got {bounds!r}")
         self.bounds = b
         self.scale = max(b[2] - b[0], b[3] - b[1])
+        check_extent(self.obstacles, b)
         self.tolerance = TOL * self.scale
         self.clearance = r + m + self.tolerance
         self.enlarged = enlarge(self.obstacles, self.clearance)
@@ -146,6 +151,8 @@ class PlanningMap:
     def add_obstacles(self, obstacles: Iterable) -> list[Polygon]:
         """Add real obstacles in place (incremental cache update); return their enlargements."""
         polys = as_polygons(obstacles, name="new_obstacles")
+        check_size(self.obstacles + polys)
+        check_extent(polys, self.bounds)
         big = enlarge(polys, self.clearance)
         self.obstacles.extend(polys)
         self.enlarged.extend(big)

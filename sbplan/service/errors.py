@@ -7,8 +7,8 @@ Every error response is JSON ``{"code": ..., "message": ...}`` (:class:`sbplan.s
 
 from __future__ import annotations
 
-from ..errors import (CameraMotionError, DetectionError, ImageError, InputError, PlanningError,
-                      SbplanError)
+from ..errors import (CameraMotionError, DetectionError, ImageError, InputError, LimitError, NoFloorError,
+                      PlanningError, SbplanError, StageError)
 
 
 class ServiceError(SbplanError):
@@ -60,8 +60,14 @@ def status_and_code(exc: SbplanError) -> tuple[int, str]:
         return exc.status, exc.code
     if isinstance(exc, PlanningError):
         return 422, exc.reason
+    if isinstance(exc, NoFloorError):  # a dead camera or a dark room: a better frame fixes it
+        return 422, "no-floor"
     if isinstance(exc, CameraMotionError):
         return 409, "camera-moved"
+    if isinstance(exc, StageError):  # the server's plugin failed, not the client's input
+        return 500, "stage-failed"
+    if isinstance(exc, LimitError):
+        return 413, "limit-exceeded"
     if isinstance(exc, ImageError):
         return 415, "not-an-image"
     if isinstance(exc, DetectionError):

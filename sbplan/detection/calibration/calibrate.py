@@ -12,20 +12,22 @@ from __future__ import annotations
 import logging
 import os
 from dataclasses import replace
-from typing import Any
+from typing import Any, Unpack, cast
 
 import cv2
 import numpy as np
 
-from ... import registry
+from ... import limits, registry
+from ...contracts import (Binarizer, ContourApproximator, ContourExtractor, DescriptorMatcher, OccupancyMapper,
+                          StageChoices, distances_between)
 from ...errors import CalibrationError, InputError
-from ...imageio import as_gray, load_image
+from ...imageio import ImageInput, as_gray, load_image
 from ...workspace import Workspace, load_workspace
 from ..grid import Grid, fit_grid
 from ..outline_checks import (EDGE_DEPTH_PX, edge_contrast, edge_probes, inner_deviations, inner_tolerance,
                               outline_deviation, reference_samples, signed_distance_map)
-from ..registration import centre_window, grey_centres, thumbnail
-from .file import Calibration
+from ..registration import CameraMotion, centre_window, grey_centres, thumbnail
+from .file import SYMBOL_WINDOW, Calibration
 from ..working import WorkScale, work_factor
 from .shapes import Shapes, extract_shapes
 from .threshold import match_threshold
@@ -46,7 +48,7 @@ def _stage_spec(stage) -> dict[str, Any]:
     return {"name": stage.name, "options": stage.config()}
 
 
-def _symbol_descriptor_from_image(symbol: Any, *, extractor, approximator, matcher) -> np.ndarray:
+def _symbol_descriptor_from_image(symbol: ImageInput, *, extractor, approximator, matcher) -> np.ndarray:
     gray = as_gray(load_image(symbol) if isinstance(symbol, (str, os.PathLike)) else symbol, name="symbol")
     # An image of one symbol on a plain ground, at any scale: one global threshold separates them
     # (a local binarizer sized for the floor's symbols would not), and the largest dark shape is it.
@@ -58,7 +60,8 @@ def _symbol_descriptor_from_image(symbol: Any, *, extractor, approximator, match
     return shapes.descriptors[int(np.argmax(shapes.areas))]
 
 
-def update_calibration(calibration: Calibration, frame: Any, **stages: Any) -> tuple[Calibration, Any]:
+def update_calibration(calibration: Calibration, frame: ImageInput,
+                       **stages: Unpack[StageChoices]) -> tuple[Calibration, CameraMotion]:
     """Re-anchor a calibration to the camera's present pose from a frame with obstacles on it.
 
     The frame is registered to the calibration with the free symbols it shows
@@ -85,7 +88,7 @@ def update_calibration(calibration: Calibration, frame: Any, **stages: Any) -> t
     CameraMotionError
         The movement cannot be estimated, or is too large to pair symbols with cells.
     """
-    from ..detector import Detector  # the detector is built on calibrations: imported when used
+    from ..detector import Detector  # here, not at the top: detector.py imports this package (a cycle)
 
     cells = Detector(calibration, **stages).find_cells(frame)
     motion = cells.camera
@@ -96,9 +99,11 @@ def update_calibration(calibration: Calibration, frame: Any, **stages: Any) -> t
     return replace(updated, stats=stats), motion
 
 
-def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str | os.PathLike | None = None,
-              cell_size: float | None = None, binarizer: Any = None, extractor: Any = None,
-              approximator: Any = None, matcher: Any = None, mapper: Any = None) -> Calibration:
+def calibrate(reference: ImageInput, *, symbol: ImageInput | None = None,
+              workspace: Workspace | str | os.PathLike | None = None, cell_size: float | None = None,
+              binarizer: str | Binarizer | None = None, extractor: str | ContourExtractor | None = None,
+              approximator: str | ContourApproximator | None = None, matcher: str | DescriptorMatcher | None = None,
+              mapper: str | OccupancyMapper | None = None) -> Calibration:
     """Calibrate on an image of the empty floor.
 
     Parameters
@@ -122,6 +127,9 @@ def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str 
     """
     gray = as_gray(load_image(reference) if isinstance(reference, (str, os.PathLike)) else reference,
                    name="reference")
+    # calibration's memory grows with the pixels (about 60 bytes each): refuse before, not during
+    limits.check("image_pixels", gray.size, f"reference: {gray.shape[1]} x {gray.shape[0]} pixels",
+                 "give a smaller image")
     if workspace is not None and not isinstance(workspace, Workspace):
         workspace = load_workspace(workspace)
     if cell_size is not None:
@@ -136,8 +144,10 @@ def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str 
                                   ("matcher", matcher), ("mapper", mapper))}
     h, w = gray.shape
     points_range = (12, max(16, (h + w) // 2))
-    kw = dict(extractor=chosen["extractor"], approximator=chosen["approximator"], matcher=chosen["matcher"])
-    shapes = extract_shapes(gray, binarizer=chosen["binarizer"], points_range=points_range, **kw)
+    matcher_stage = cast(DescriptorMatcher, chosen["matcher"])  # the registry made it for the kind "matcher"
+    extractor_stage, approximator_stage = chosen["extractor"], chosen["approximator"]
+    shapes = extract_shapes(gray, binarizer=chosen["binarizer"], points_range=points_range,
+                            extractor=extractor_stage, approximator=approximator_stage, matcher=matcher_stage)
     given = None if symbol is None else _symbol_descriptor_from_image(
         symbol, extractor=chosen["extractor"], approximator=chosen["approximator"], matcher=chosen["matcher"])
     members = _symbol_members(shapes, chosen["matcher"], ref=given)
@@ -147,17 +157,18 @@ def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str 
     # (sbplan.detection.working): a 4K camera costs what the symbols' size asks, not its pixels.
     size = float(np.sqrt(np.median(shapes.areas[members])))
     work = WorkScale(work_factor(size), gray.shape)
+    work_arg = None if work.identity else work
     if not work.identity:
         points_range = (12, max(16, sum(work.work_shape) // 2))
-        kw["work"] = work
     fit = getattr(chosen["binarizer"], "with_symbol_size", None)
-    refit = fit(size * 1.6 / work.factor) if fit is not None else chosen["binarizer"]
+    refit = fit(size * SYMBOL_WINDOW / work.factor) if fit is not None else chosen["binarizer"]
     if refit != chosen["binarizer"] or not work.identity:
         chosen["binarizer"] = refit
-        shapes = extract_shapes(gray, binarizer=refit, points_range=points_range, **kw)
+        shapes = extract_shapes(gray, binarizer=refit, points_range=points_range, work=work_arg,
+                                extractor=extractor_stage, approximator=approximator_stage, matcher=matcher_stage)
         members = _symbol_members(shapes, chosen["matcher"], ref=given)
     reference_descriptor = np.median(shapes.descriptors[members], axis=0)
-    dist = chosen["matcher"].distance_matrix(shapes.descriptors, reference_descriptor[None, :])[:, 0]
+    dist = distances_between(matcher_stage, shapes.descriptors, reference_descriptor[None, :])[:, 0]
     grid = fit_grid(shapes.centres[members])
     # What a symbol looks like in later images is not what it looks like in this one: measure the
     # symbols again in degraded copies of the reference (defocus, dimmer light, sensor noise).
@@ -168,7 +179,8 @@ def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str 
     distance_map = signed_distance_map(symbol_polygons, gray.shape)
     degraded, deviations, degraded_polygons, degraded_cells, shifts = _degraded_symbols(
         gray, grid, reference_descriptor, cell_area, distance_map,
-        binarizer=chosen["binarizer"], points_range=points_range, **kw)
+        binarizer=chosen["binarizer"], points_range=points_range, work=work_arg,
+        extractor=extractor_stage, approximator=approximator_stage, matcher=matcher_stage)
     # An obstacle that clips a symbol moves part of its outline by more than light and focus
     # move it; the tolerance sits outside what the degraded copies showed, and at least 1 px.
     outline_tolerance = float(max(1.25 * np.max(deviations), 1.0)) if len(deviations) else 3.0
@@ -254,7 +266,11 @@ def _degraded_symbols(gray: np.ndarray, grid: Grid, descriptor: np.ndarray, cell
         np.clip(0.3 * g + rng.normal(0, 4, g.shape), 0, 255).astype(np.uint8),
         np.clip(g + rng.normal(0, 8, g.shape), 0, 255).astype(np.uint8),
     ]
-    distances, deviations, polygons, cells_kept, shifts = [], [], [], [], []
+    distances: list[np.ndarray] = []
+    deviations: list[np.ndarray] = []
+    polygons: list[np.ndarray] = []
+    cells_kept: list[np.ndarray] = []
+    shifts: list[np.ndarray] = []
     for image in copies:
         shapes = extract_shapes(image, binarizer=binarizer, extractor=extractor, approximator=approximator,
                                 matcher=matcher, points_range=points_range, work=work)
@@ -267,7 +283,7 @@ def _degraded_symbols(gray: np.ndarray, grid: Grid, descriptor: np.ndarray, cell
         ok &= np.abs(np.log(ratio)) < np.log(1.3)
         if not ok.any():  # this degradation erased every symbol: it says nothing about them
             continue
-        d = matcher.distance_matrix(shapes.descriptors[ok], descriptor[None, :])[:, 0]
+        d = distances_between(matcher, shapes.descriptors[ok], descriptor[None, :])[:, 0]
         # one shape per cell: the best match (a cell may also hold the odd noise blob)
         flat = cells[ok, 0] * grid.cols + cells[ok, 1]
         order = np.lexsort((d, flat))
@@ -292,7 +308,7 @@ def _symbol_members(shapes: Shapes, matcher, *, ref: np.ndarray | None) -> np.nd
     if n == 0:
         raise CalibrationError("no symbols found in the reference image (no dark shapes of symbol size)")
     if ref is not None:
-        d = matcher.distance_matrix(shapes.descriptors, ref[None, :])[:, 0]
+        d = distances_between(matcher, shapes.descriptors, ref[None, :])[:, 0]
         near = d < getattr(matcher, "default_threshold", 0.5)
         if not near.any():
             raise CalibrationError("no symbols found in the reference image: no contour matches the given symbol")
@@ -309,7 +325,7 @@ def _symbol_members(shapes: Shapes, matcher, *, ref: np.ndarray | None) -> np.nd
 
 def _dominant_repeated_shape(shapes: Shapes, matcher) -> np.ndarray:
     """The largest group of contours with the same shape and the same size."""
-    d = matcher.distance_matrix(shapes.descriptors, shapes.descriptors)
+    d = distances_between(matcher, shapes.descriptors, shapes.descriptors)
     ratio = shapes.areas[:, None] / shapes.areas[None, :]
     same_size = np.abs(np.log(ratio)) < np.log(1.35)
     tight = 0.25 * getattr(matcher, "default_threshold", 0.5)
@@ -318,7 +334,7 @@ def _dominant_repeated_shape(shapes: Shapes, matcher) -> np.ndarray:
     members = np.flatnonzero(alike[seed])
     # widen once around the group's median so the seed's own noise does not decide membership
     median = np.median(shapes.descriptors[members], axis=0)
-    dm = matcher.distance_matrix(shapes.descriptors, median[None, :])[:, 0]
+    dm = distances_between(matcher, shapes.descriptors, median[None, :])[:, 0]
     spread = max(float(np.max(dm[members])), 1e-6)
     area = np.median(shapes.areas[members])
     return np.flatnonzero((dm <= 2.0 * spread) & (np.abs(np.log(shapes.areas / area)) < np.log(1.35)))

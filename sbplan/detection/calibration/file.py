@@ -15,9 +15,10 @@ from typing import Any
 import cv2
 import numpy as np
 
-from ... import registry
-from ...errors import CalibrationError, SbplanError
-from ...imageio import write_json
+from ... import limits, registry
+from ...contracts import DescriptorMatcher, Stage, descriptors_of, distances_between
+from ...errors import CalibrationFileError, InputError, MapFormatError, PluginError, UnknownStageError
+from ...imageio import image_size, write_json
 from ...polygons import signed_areas
 from ...workspace import Workspace
 from ..grid import Grid
@@ -26,6 +27,13 @@ from ..registration import THUMBNAIL_FACTOR, apply
 from .threshold import match_threshold
 
 FORMAT = "sbplan.calibration/1"
+
+#: Automatic stage options (``with_symbol_size``) are fitted to this many symbol sizes, at
+#: calibration and when a calibration's stage is made.
+SYMBOL_WINDOW = 1.6
+
+#: The stages a calibration names, one of each kind.
+STAGE_KINDS = ("binarizer", "extractor", "approximator", "matcher", "mapper")
 
 
 @dataclass(frozen=True, eq=False)
@@ -98,14 +106,24 @@ class Calibration:
     def symbols_expected(self) -> int:
         return self.grid.rows * self.grid.cols
 
-    def stage(self, kind: str, override: Any = None):
-        """The stage instance of ``kind``: ``override`` (a name or an instance) or the calibrated one."""
-        if override is not None:
-            return registry.registry().create(kind, override)
-        spec = self.stages[kind]
-        return registry.registry().create(kind, spec["name"], **spec.get("options", {}))
+    def stage(self, kind: str, override: str | Stage | None = None):
+        """The stage instance of ``kind``: ``override`` (a name or an instance) or the calibrated one.
 
-    def matching_for(self, matcher: Any) -> tuple[np.ndarray, float]:
+        A stage with options set to "from the symbol size" (``with_symbol_size``, as the local
+        binarizers' ``window=0``) gets them fitted to this calibration's symbols, as calibration
+        fits them: an override named at detection, or a file whose options were left automatic,
+        does not fall back to sizes made for no floor in particular."""
+        if override is not None:
+            stage = registry.registry().create(kind, override)
+        else:
+            spec = self.stages[kind]
+            stage = registry.registry().create(kind, spec["name"], **spec.get("options", {}))
+        fit = getattr(stage, "with_symbol_size", None)
+        if fit is not None and not isinstance(override, Stage):
+            stage = fit(math.sqrt(self.symbol_area_px) * SYMBOL_WINDOW / self.work_scale)
+        return stage
+
+    def matching_for(self, matcher: DescriptorMatcher) -> tuple[np.ndarray, float]:
         """The reference descriptor and the match threshold under ``matcher`` (a stage instance).
 
         The calibrated ones when ``matcher`` is the calibrated matcher with the same options;
@@ -121,11 +139,11 @@ class Calibration:
         if (matcher.config() == self.stage("matcher").config()
                 and matcher.name == self.stages["matcher"]["name"]):
             return self.descriptor, self.threshold
-        descriptor = np.median(matcher.describe_many(self.symbol_polygons), axis=0)
+        descriptor = np.median(descriptors_of(matcher, self.symbol_polygons), axis=0)
         # the symbols as later images show them: the reference's and its degraded copies'
-        seen = matcher.describe_many(self.symbol_polygons + self.degraded_polygons)
-        d_sym = matcher.distance_matrix(seen, descriptor[None, :])[:, 0]
-        d_other = (matcher.distance_matrix(matcher.describe_many(self.other_polygons), descriptor[None, :])[:, 0]
+        seen = descriptors_of(matcher, self.symbol_polygons + self.degraded_polygons)
+        d_sym = distances_between(matcher, seen, descriptor[None, :])[:, 0]
+        d_other = (distances_between(matcher, descriptors_of(matcher, self.other_polygons), descriptor[None, :])[:, 0]
                    if self.other_polygons else np.zeros(0))
         area = float(np.median(np.abs(signed_areas(self.symbol_polygons))))
         threshold, _ = match_threshold(matcher, descriptor, d_sym, d_other, area=area)
@@ -198,108 +216,210 @@ class Calibration:
 
     @classmethod
     def from_json(cls, data: Any, *, source: str = "calibration") -> "Calibration":
+        """A calibration from its JSON form, every field checked first.
+
+        Raises
+        ------
+        CalibrationFileError
+            Not a calibration, another format version, or a field of the wrong type or shape, not
+            finite, or out of range; the message names ``source`` and the field.
+        """
         if not isinstance(data, dict) or "format" not in data:
-            raise CalibrationError(f"{source}: not an sbplan calibration file")
+            raise CalibrationFileError(f"{source}: not an sbplan calibration file")
         if data["format"] != FORMAT:
-            raise CalibrationError(
+            raise CalibrationFileError(
                 f"{source}: calibration format {data['format']!r} is not supported (expected {FORMAT!r}); "
                 "re-run 'sbplan calibrate' on the reference image")
+        f = _Fields(source)
+        shape = f.ints(data, "image_shape", 2, low=1)
+        limits.check("image_pixels", shape[0] * shape[1], f"{source}: image_shape {shape[0]} x {shape[1]}")
+        stages = f.stages(data)
+        grid_data = f.mapping(data, "grid")
+        rows, cols = (f.ints(grid_data, k, None, low=1, field=f"grid.{k}") for k in ("rows", "cols"))
+        limits.check("image_pixels", rows * cols, f"{source}: grid of {rows} x {cols} cells")
+        grid = Grid(rows, cols, f.array(grid_data, "centres_px", (rows, cols, 2), field="grid.centres_px"),
+                    f.array(grid_data, "homography", (3, 3), field="grid.homography"),
+                    f.number(grid_data, "tolerance_px", positive=True, field="grid.tolerance_px"))
+        if abs(np.linalg.det(grid.homography)) < 1e-12:
+            raise CalibrationFileError(f"{source}: grid.homography: is singular (maps the grid to a line)")
+        n_cells = rows * cols
+        sym = f.mapping(data, "symbol")
+        polygons = f.polygons(sym, "polygons", field="symbol.polygons")
+        if len(polygons) != n_cells:
+            raise CalibrationFileError(f"{source}: symbol.polygons: {len(polygons)} outlines for a grid of "
+                                       f"{rows} x {cols} = {n_cells} cells")
+        descriptor = f.array(sym, "descriptor", (None,), field="symbol.descriptor")
+        if not len(descriptor):
+            raise CalibrationFileError(f"{source}: symbol.descriptor: is empty")
+        lo, hi = f.ints(sym, "points_range", 2, low=1, field="symbol.points_range")
+        if lo > hi:
+            raise CalibrationFileError(f"{source}: symbol.points_range: [{lo}, {hi}] runs backwards")
+        margin = f.number(sym, "margin", field="symbol.margin", allow_inf=True)
+        if margin < 0:
+            raise CalibrationFileError(f"{source}: symbol.margin: must be >= 0, got {margin}")
+        thumb = None
+        if "reference_thumbnail_png" in sym:
+            thumb = _png_from_base64(sym["reference_thumbnail_png"], source)
+            expected = (max(1, shape[0] // THUMBNAIL_FACTOR), max(1, shape[1] // THUMBNAIL_FACTOR))
+            if thumb.shape != expected:
+                raise CalibrationFileError(
+                    f"{source}: symbol.reference_thumbnail_png: is {thumb.shape[1]} x {thumb.shape[0]} pixels, "
+                    f"expected {expected[1]} x {expected[0]} for a {shape[1]} x {shape[0]} image")
         try:
-            sym = data["symbol"]
-            cal = cls(
-                image_shape=(int(data["image_shape"][0]), int(data["image_shape"][1])),
-                stages={k: dict(v) for k, v in data["stages"].items()},
-                work_scale=_work_scale(data.get("work_scale", 1), source),
-                grid=Grid.from_json(data["grid"]),
-                symbol_polygons=[np.asarray(p, np.float64) for p in sym["polygons"]],
-                other_polygons=[np.asarray(p, np.float64) for p in data["other_polygons"]],
-                degraded_polygons=[np.asarray(p, np.float64) for p in data["degraded_polygons"]],
-                descriptor=np.asarray(sym["descriptor"], np.float64),
-                threshold=float(sym["threshold"]),
-                margin=float(sym["margin"]),
-                symbol_area_px=float(sym["area_px"]),
-                symbol_points_range=(int(sym["points_range"][0]), int(sym["points_range"][1])),
-                outline_tolerance_px=float(sym["outline_tolerance_px"]),
-                inner_tolerance_px=(np.asarray(sym["inner_tolerance_px"], np.float64)
-                                    if "inner_tolerance_px" in sym else None),
-                edge_contrast=(np.asarray(sym["edge_contrast"], np.float32)
-                               if "edge_contrast" in sym else None),
-                registration_centres_px=(np.asarray(sym["registration_centres_px"], np.float64)
-                                         if "registration_centres_px" in sym else None),
-                reference_thumbnail=(_png_from_base64(sym["reference_thumbnail_png"], source)
-                                     if "reference_thumbnail_png" in sym else None),
-                workspace=Workspace.from_json(data["workspace"]),
-                stats=dict(data.get("stats", {})),
-            )
-        except SbplanError:
-            raise
-        except (KeyError, TypeError, ValueError, IndexError, OverflowError, AttributeError) as exc:
-            raise CalibrationError(f"{source}: corrupt calibration file ({type(exc).__name__}: {exc})") from None
-        problem = cal._inconsistency()
-        if problem:
-            raise CalibrationError(f"{source}: corrupt calibration file ({problem})")
-        return cal
-
-    def _inconsistency(self) -> str | None:
-        """What makes this calibration unusable for detection (a file edited or cut short), or None.
-
-        Checked on load, so that detection never meets shapes or values it cannot work with."""
-        from ...contracts import KINDS
-
-        h, w = self.image_shape
-        if h < 1 or w < 1:
-            return f"image_shape {self.image_shape} is empty"
-        for kind in [k for k in KINDS if k != "planner"]:
-            spec = self.stages.get(kind)
-            if not (isinstance(spec, dict) and isinstance(spec.get("name"), str)
-                    and isinstance(spec.get("options", {}), dict)):
-                return f"stages.{kind} must be {{'name': ..., 'options': {{...}}}}"
-        g = self.grid
-        cells = g.rows * g.cols
-        if g.rows < 1 or g.cols < 1:
-            return f"grid of {g.rows} x {g.cols} cells"
-        finite = {"grid.centres_px": g.centres_px, "grid.homography": g.homography,
-                  "symbol.descriptor": self.descriptor}
-        for name, a in finite.items():
-            if a.size == 0 or not np.isfinite(a).all():
-                return f"{name} must be finite numbers"
-        if abs(np.linalg.det(g.homography)) < 1e-12 or not math.isfinite(g.tolerance_px) or g.tolerance_px <= 0:
-            return "grid.homography is singular or grid.tolerance_px not > 0"
-        if self.descriptor.ndim != 1:
-            return "symbol.descriptor must be a list of numbers"
-        for name, polys in (("symbol.polygons", self.symbol_polygons), ("other_polygons", self.other_polygons),
-                            ("degraded_polygons", self.degraded_polygons)):
-            for i, q in enumerate(polys):
-                if q.ndim != 2 or q.shape[0] < 3 or q.shape[1] != 2 or not np.isfinite(q).all():
-                    return f"{name}[{i}] must be at least 3 finite [x, y] points"
-        if len(self.symbol_polygons) != cells:
-            return f"symbol.polygons holds {len(self.symbol_polygons)} outlines for {cells} cells"
-        values = {"symbol.threshold": self.threshold, "symbol.margin": self.margin,
-                  "symbol.area_px": self.symbol_area_px, "symbol.outline_tolerance_px": self.outline_tolerance_px}
-        for name, v in values.items():
-            if not (math.isfinite(v) and v >= 0):
-                return f"{name} must be a finite number >= 0, got {v}"
-        lo, hi = self.symbol_points_range
-        if not 0 <= lo < hi:
-            return f"symbol.points_range must be [low, high] with 0 <= low < high, got {[lo, hi]}"
-        shapes = {"symbol.inner_tolerance_px": (self.inner_tolerance_px, (cells, SAMPLES)),
-                  "symbol.edge_contrast": (self.edge_contrast, (cells, EDGE_SAMPLES)),
-                  "symbol.registration_centres_px": (self.registration_centres_px, (g.rows, g.cols, 2))}
-        for name, (a, shape) in shapes.items():
-            if a is not None and (a.shape != shape or not np.isfinite(a).all()):
-                return f"{name} must be finite numbers of shape {shape}, got shape {a.shape}"
-        if self.reference_thumbnail is not None and self.reference_thumbnail.ndim != 2:
-            return "symbol.reference_thumbnail_png must be a grey image"
-        return None
+            workspace = Workspace.from_json(f.mapping(data, "workspace"))
+        except (MapFormatError, KeyError, TypeError, ValueError, IndexError) as exc:
+            raise CalibrationFileError(f"{source}: workspace: {exc}") from None
+        stats = data.get("stats", {})
+        if not isinstance(stats, dict):
+            raise CalibrationFileError(f"{source}: stats: expected an object")
+        return cls(
+            image_shape=(shape[0], shape[1]),
+            stages=stages,
+            work_scale=_work_scale(data.get("work_scale", 1), source),
+            grid=grid,
+            symbol_polygons=polygons,
+            other_polygons=f.polygons(data, "other_polygons"),
+            degraded_polygons=f.polygons(data, "degraded_polygons"),
+            descriptor=descriptor,
+            threshold=f.number(sym, "threshold", positive=True, field="symbol.threshold"),
+            margin=margin,
+            symbol_area_px=f.number(sym, "area_px", positive=True, field="symbol.area_px"),
+            symbol_points_range=(lo, hi),
+            outline_tolerance_px=f.number(sym, "outline_tolerance_px", positive=True,
+                                          field="symbol.outline_tolerance_px"),
+            inner_tolerance_px=f.optional_array(sym, "inner_tolerance_px", (n_cells, SAMPLES), low=0.0,
+                                                field="symbol.inner_tolerance_px"),
+            edge_contrast=(None if "edge_contrast" not in sym else
+                           f.array(sym, "edge_contrast", (n_cells, EDGE_SAMPLES),
+                                   field="symbol.edge_contrast").astype(np.float32)),
+            registration_centres_px=f.optional_array(sym, "registration_centres_px", (rows, cols, 2),
+                                                     field="symbol.registration_centres_px"),
+            reference_thumbnail=thumb,
+            workspace=workspace,
+            stats=dict(stats),
+        )
 
     def save(self, path: str | os.PathLike) -> Path:
         """Write the calibration as JSON, atomically (a failed write never destroys a good file)."""
         return write_json(path, self.to_json())
 
 
+class _Fields:
+    """Reads a calibration's fields, each checked, with errors naming the file and the field."""
+
+    def __init__(self, source: str):
+        self.source = source
+
+    def fail(self, field: str, what: str) -> CalibrationFileError:
+        return CalibrationFileError(f"{self.source}: {field}: {what}")
+
+    def get(self, data: dict, key: str, field: str) -> Any:
+        if not isinstance(data, dict):
+            raise self.fail(field.rsplit(".", 1)[0] if "." in field else field, "expected an object")
+        if key not in data:
+            raise self.fail(field, "missing")
+        return data[key]
+
+    def mapping(self, data: dict, key: str, field: str | None = None) -> dict:
+        v = self.get(data, key, field or key)
+        if not isinstance(v, dict):
+            raise self.fail(field or key, f"expected an object, got {type(v).__name__}")
+        return v
+
+    def number(self, data: dict, key: str, *, field: str, positive: bool = False, allow_inf: bool = False) -> float:
+        v = self.get(data, key, field)
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise self.fail(field, f"expected a number, got {_short(v)}")
+        x = float(v)
+        if math.isnan(x) or (math.isinf(x) and not allow_inf):
+            raise self.fail(field, f"must be finite, got {x}")
+        if positive and not x > 0:
+            raise self.fail(field, f"must be > 0, got {x:g}")
+        return x
+
+    def ints(self, data: dict, key: str, n: int | None, *, low: int, field: str | None = None):
+        field = field or key
+        v = self.get(data, key, field)
+        items = [v] if n is None else v
+        if n is not None and (not isinstance(v, list) or len(v) != n):
+            raise self.fail(field, f"expected {n} integers, got {_short(v)}")
+        out = []
+        for x in items:
+            if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x) or x != int(x):
+                raise self.fail(field, f"expected integers, got {_short(v)}")
+            if x < low:
+                raise self.fail(field, f"must be >= {low}, got {_short(v)}")
+            out.append(int(x))
+        return out[0] if n is None else out
+
+    def array(self, data: dict, key: str, shape: tuple, *, field: str, low: float | None = None) -> np.ndarray:
+        v = self.get(data, key, field)
+        try:
+            a = np.asarray(v, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise self.fail(field, "expected numbers in nested lists") from None
+        if a.ndim != len(shape) or any(e is not None and e != g for e, g in zip(shape, a.shape)):
+            want = " x ".join("n" if e is None else str(e) for e in shape)
+            raise self.fail(field, f"expected shape ({want}), got {a.shape}")
+        if not np.isfinite(a).all():
+            raise self.fail(field, "holds NaN or infinite values")
+        if low is not None and a.size and a.min() < low:
+            raise self.fail(field, f"holds values below {low:g}")
+        return a
+
+    def optional_array(self, data: dict, key: str, shape: tuple, *, field: str, low: float | None = None):
+        return self.array(data, key, shape, field=field, low=low) if key in data else None
+
+    def polygons(self, data: dict, key: str, *, field: str | None = None) -> list[np.ndarray]:
+        field = field or key
+        v = self.get(data, key, field)
+        if not isinstance(v, list):
+            raise self.fail(field, f"expected a list of outlines, got {_short(v)}")
+        out = []
+        for i, p in enumerate(v):
+            try:
+                a = np.asarray(p, dtype=np.float64)
+            except (TypeError, ValueError):
+                raise self.fail(f"{field}[{i}]", "expected [x, y] points") from None
+            if a.ndim != 2 or a.shape[1] != 2 or len(a) < 3:
+                raise self.fail(f"{field}[{i}]", f"expected at least 3 [x, y] points, got shape {a.shape}")
+            if not np.isfinite(a).all():
+                raise self.fail(f"{field}[{i}]", "holds NaN or infinite values")
+            out.append(a)
+        return out
+
+    def stages(self, data: dict) -> dict[str, dict[str, Any]]:
+        stages = self.mapping(data, "stages")
+        out = {}
+        for kind in STAGE_KINDS:
+            spec = self.mapping(stages, kind, f"stages.{kind}")
+            name = self.get(spec, "name", f"stages.{kind}.name")
+            if not isinstance(name, str) or not name:
+                raise self.fail(f"stages.{kind}.name", f"expected a stage name, got {_short(name)}")
+            options = spec.get("options", {})
+            if not isinstance(options, dict):
+                raise self.fail(f"stages.{kind}.options", "expected an object")
+            try:
+                registry.registry().info(kind, name)
+            except UnknownStageError:
+                pass  # a plugin not installed here: said when a detector needs it
+            else:
+                try:  # the stage checks its own options
+                    registry.registry().create(kind, name, **options)
+                except (InputError, PluginError) as exc:
+                    raise self.fail(f"stages.{kind}.options", str(exc)) from None
+            out[kind] = {"name": name, "options": dict(options)}
+        return out
+
+
+def _short(v: Any) -> str:
+    text = json.dumps(v, default=str) if not isinstance(v, float) else repr(v)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
 def _work_scale(value: Any, source: str) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= 64:
-        raise CalibrationError(f"{source}: work_scale must be a whole number from 1 to 64, got {value!r}")
+        raise CalibrationFileError(f"{source}: work_scale: must be a whole number from 1 to 64, got {value!r}")
     return value
 
 
@@ -309,21 +429,49 @@ def _png_base64(image: np.ndarray) -> str:
 
 
 def _png_from_base64(text: Any, source: str) -> np.ndarray:
+    field = f"{source}: symbol.reference_thumbnail_png"
     try:
-        img = cv2.imdecode(np.frombuffer(base64.b64decode(text, validate=True), np.uint8), cv2.IMREAD_GRAYSCALE)
+        data = base64.b64decode(text, validate=True)
     except (TypeError, ValueError, binascii.Error):
+        raise CalibrationFileError(f"{field}: is not base64 text") from None
+    size = image_size(data)
+    if not data.startswith(b"\x89PNG") or size is None:
+        raise CalibrationFileError(f"{field}: is not a PNG image")
+    limits.check("image_pixels", size[0] * size[1], f"{field}: {size[0]} x {size[1]} pixels")
+    try:
+        img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_GRAYSCALE)
+    except cv2.error:
         img = None
     if img is None:
-        raise CalibrationError(f"{source}: symbol.reference_thumbnail_png is not a base64 PNG image")
+        raise CalibrationFileError(f"{field}: is not a readable PNG image")
     return img
 
 
+#: Calibration files hold the outlines of every symbol; one larger than this is not a calibration.
+MAX_FILE_BYTES = 1 << 30
+
+
 def load_calibration(path: str | os.PathLike) -> Calibration:
+    """Read and check a calibration file (see :meth:`Calibration.from_json`).
+
+    Raises
+    ------
+    CalibrationFileError
+        No such file, not a regular file, not JSON, or a field detection cannot use.
+    """
     p = Path(path)
+    if not p.exists():
+        raise CalibrationFileError(f"{p}: no such calibration file")
     if not p.is_file():
-        raise CalibrationError(f"{p}: no such calibration file")
+        raise CalibrationFileError(f"{p}: is not a calibration file (a folder, device or FIFO)")
+    if p.stat().st_size > MAX_FILE_BYTES:
+        raise CalibrationFileError(f"{p}: {p.stat().st_size:,} bytes is too large for a calibration file")
     try:
         data = json.loads(p.read_text(encoding="utf-8"))
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise CalibrationError(f"{p}: corrupt calibration file (not JSON: {exc})") from None
+        raise CalibrationFileError(f"{p}: corrupt calibration file (not JSON: {exc})") from None
+    except RecursionError:
+        raise CalibrationFileError(f"{p}: corrupt calibration file (nested too deeply to be a calibration)") from None
+    except OSError as exc:
+        raise CalibrationFileError(f"{p}: cannot be read ({exc.strerror})") from None
     return Calibration.from_json(data, source=str(p))

@@ -7,8 +7,20 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...contracts import array_of, call_stage, describe_value, descriptors_of, stage_failure
 from ...polygons import centroids, length_filter, signed_areas
 from ..working import WorkScale
+
+
+def _is_list(v) -> str | None:
+    return None if isinstance(v, (list, tuple)) else f"{describe_value(v)}, expected a list of Contours"
+
+
+def _is_points(v) -> str | None:
+    if isinstance(v, np.ndarray) and v.ndim == 2 and v.shape[1] == 2 and v.dtype.kind in "iuf" \
+            and np.isfinite(v).all():
+        return None
+    return f"{describe_value(v)}, expected finite (M, 2) points"
 
 
 @dataclass(frozen=True, eq=False)
@@ -30,15 +42,22 @@ def extract_shapes(gray: np.ndarray, *, binarizer, extractor, approximator, matc
     With ``work`` (:class:`~sbplan.detection.working.WorkScale`) the image is reduced first and
     the polygons mapped back to its pixels (areas and centres with them); ``points`` and
     ``points_range`` count the reduced image's boundary pixels.
+
+    Every stage is called through :func:`sbplan.contracts.call_stage`: a stage that raises or
+    returns what its contract does not allow is a StageError naming it.
     """
     if work is not None:
         gray = work.reduce(gray)
-    binary = binarizer.binarize(gray)
-    contours = [c for c in extractor.extract(binary) if not c.is_hole]
-    kept = [contours[i] for i in np.flatnonzero(length_filter_steps(contours, points_range))]
-    approximated = [approximator.approximate(c) for c in kept]
+    binary = call_stage(binarizer, "binarize", gray, returns=array_of(gray.shape, kinds="bui"))
+    found = call_stage(extractor, "extract", binary, returns=_is_list)
+    try:
+        contours = [c for c in found if not c.is_hole]
+        kept = [contours[i] for i in np.flatnonzero(length_filter_steps(contours, points_range))]
+    except (AttributeError, TypeError):
+        raise stage_failure(extractor, "broke its contract: extract() returned items that are not Contours") from None
+    approximated = [call_stage(approximator, "approximate", c, returns=_is_points) for c in kept]
     keep = [i for i, p in enumerate(approximated) if len(p) >= 3]
-    polygons = [approximated[i] for i in keep]
+    polygons = [np.asarray(approximated[i], np.float64) for i in keep]
     if work is not None and not work.identity:
         polygons = [work.to_frame(p) for p in polygons]
     n_points = [len(kept[i].points) for i in keep]
@@ -47,10 +66,10 @@ def extract_shapes(gray: np.ndarray, *, binarizer, extractor, approximator, matc
     polygons, n_points, areas = [polygons[i] for i in nonzero], [n_points[i] for i in nonzero], areas[nonzero]
     if polygons:
         centres = centroids(polygons).reshape(-1, 2)
-        descriptors = matcher.describe_many(polygons)
+        descriptors = descriptors_of(matcher, polygons)
     else:
         areas, centres = np.zeros(0), np.zeros((0, 2))
-        descriptors = matcher.describe_many([])
+        descriptors = call_stage(matcher, "describe_many", [], returns=array_of((0, None)))
     return Shapes(polygons, np.asarray(n_points, np.int64), areas, centres, descriptors, len(contours))
 
 

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...contracts import descriptors_of, distances_between
+
 
 def derive_threshold(symbol_distances: np.ndarray, other_distances: np.ndarray) -> tuple[float, float]:
     """Match threshold from measured distances, and the margin it leaves.
@@ -40,7 +42,7 @@ def confuser_distances(matcher, descriptor: np.ndarray, area: float) -> np.ndarr
         b = np.sqrt(area * aspect)
         w, h = b / 2, b / aspect / 2
         shapes.append(np.array([[-w, -h], [w, -h], [w, h], [-w, h]]))
-    return matcher.distance_matrix(matcher.describe_many(shapes), descriptor[None, :])[:, 0]
+    return distances_between(matcher, descriptors_of(matcher, shapes), descriptor[None, :])[:, 0]
 
 
 def match_threshold(matcher, descriptor: np.ndarray, symbol_distances: np.ndarray,
