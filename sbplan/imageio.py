@@ -274,8 +274,8 @@ def image_text(path: str | os.PathLike) -> dict[str, str]:
             if kind in (b"IDAT", b"IEND") or i + 8 + n > len(head):
                 break
             if kind == b"tEXt":
-                key, _, value = head[i + 8:i + 8 + n].partition(b"\0")
-                out[key.decode("latin-1")] = value.decode("latin-1")
+                raw_key, _, raw_value = head[i + 8:i + 8 + n].partition(b"\0")
+                out[raw_key.decode("latin-1")] = raw_value.decode("latin-1")
             i += 12 + n
     elif head[:1] == b"P" and head[1:2] in b"123456":
         for line in head.split(b"\n")[1:8]:

@@ -223,7 +223,7 @@ def test_detect_on_truncated_and_corrupted_image_files(files, tmp_path, data, ex
 
 @pytest.mark.parametrize("edit, fragment", [
     (lambda d: d["stages"].pop("approximator"), "stages.approximator"),
-    (lambda d: d["symbol"]["polygons"].pop(), "outlines for 48 cells"),
+    (lambda d: d["symbol"]["polygons"].pop(), "outlines for a grid of 6 x 8"),
     (lambda d: d["symbol"].__setitem__("descriptor", []), "descriptor"),
     (lambda d: d["symbol"]["edge_contrast"].pop(), "edge_contrast"),
     (lambda d: d["grid"].__setitem__("homography", [[0, 0, 0]] * 3), "singular"),

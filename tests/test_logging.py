@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from _outputs_fixtures import ROOT, moved_floor, paper
+from _outputs_fixtures import ROOT, moved_floor, own_lines, paper
 
 #: Where printing is the job: the command line, its commands, and the ``sbplan bench`` commands'
 #: tables and progress lines (sbplan/bench/ is their implementation; evaluation.py, which the
@@ -96,17 +96,17 @@ def test_the_command_line_shows_the_log(moved, tmp_path):
         assert r.returncode == 0, r.stderr
         return r
 
-    default = detect().stderr.splitlines()
+    default = own_lines(detect().stderr)
     assert len(default) == 1 and default[0].startswith("sbplan: warning: ") and "calibrate --update" in default[0]
-    assert detect("-q").stderr == ""
-    lines = [json.loads(line) for line in detect("--log-json").stderr.splitlines()]
+    assert own_lines(detect("-q").stderr) == []
+    lines = [json.loads(line) for line in own_lines(detect("--log-json").stderr)]
     assert [(r["level"], r["logger"]) for r in lines] == [("warning", "sbplan.detection.detector")]
     assert lines[0]["data"]["camera"]["symbols_used"] >= 10 and lines[0]["time"].endswith("+00:00")
     debug = detect("-vv").stderr
     assert "sbplan: debug: [sbplan.detection.detector]" in debug and "ms (" in debug
     err = subprocess.run([sys.executable, "-m", "sbplan", "--log-json", "detect", str(tmp_path / "missing.png"), "-c",
                           str(tmp_path / "cal.json")], capture_output=True, text=True)
-    record = json.loads(err.stderr)
+    record, = [json.loads(line) for line in own_lines(err.stderr)]
     assert err.returncode != 0 and record["level"] == "error" and "missing.png" in record["message"]
 
 

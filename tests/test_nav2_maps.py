@@ -92,7 +92,7 @@ def test_map_server_values_by_hand():
 @pytest.mark.parametrize("fields, fragment", [
     ({"mode": "ternary"}, "mode"),
     ({"free_thresh": 0.7, "occupied_thresh": 0.65}, "free_thresh"),
-    ({"negate": "maybe"}, "numbers"),
+    ({"negate": "maybe"}, "negate"),
     ({"resolution": 0}, "resolution"),
 ])
 def test_bad_nav2_fields_are_map_format_errors(tmp_path, fields, fragment):
