@@ -71,22 +71,29 @@ def build_parser(selected: str | None = None) -> argparse.ArgumentParser:
 
 def _log_options(parser: argparse.ArgumentParser, default: object) -> None:
     """-v, -q and --log-json: how much of the log (sbplan.logs) shows on stderr, and in which form.
-    ``default`` None: the top level's defaults; SUPPRESS: a command's copy leaves them alone."""
-    parser.add_argument("-v", "--verbose", action="count", default=0 if default is None else default,
-                        help="more log lines on stderr: -v what was done (and OMPL's log, tracebacks on "
-                             "errors), -vv stages and timings (also after the command)")
-    parser.add_argument("-q", "--quiet", action="store_true", default=False if default is None else default,
-                        help="errors only on stderr (no warnings)")
-    parser.add_argument("--log-json", action="store_true", default=False if default is None else default,
-                        help="log lines (warnings, errors, -v's) as one JSON object each, for machines")
+    ``default`` None: the top level's defaults; SUPPRESS: a command's copy leaves them alone (and
+    an option string the command uses itself, such as a ``-q`` of its own, is left to it)."""
+    taken = {s for a in parser._actions for s in a.option_strings}
+
+    def add(flags: tuple[str, ...], **kw: object) -> None:
+        free = [f for f in flags if f not in taken]
+        if free:
+            parser.add_argument(*free, **kw)  # type: ignore[arg-type]
+
+    add(("-v", "--verbose"), action="count", default=0 if default is None else default,
+        help="more log lines on stderr: -v what was done (and OMPL's log, plugins that failed to load, "
+             "tracebacks on errors), -vv stages and timings (also after the command)")
+    add(("-q", "--quiet"), action="store_true", default=False if default is None else default,
+        help="errors only on stderr (no warnings)")
+    add(("--log-json",), action="store_true", default=False if default is None else default,
+        help="log lines (warnings, errors, -v's) as one JSON object each, for machines")
 
 
 def _verbose_everywhere(sub: argparse._SubParsersAction) -> None:
     """-v, -q and --log-json after the command (and after a subcommand's action) as well as before
     it. SUPPRESS: not given there, they leave the top-level values alone."""
     for p in set(sub.choices.values()):
-        if not any("-v" in a.option_strings for a in p._actions):
-            _log_options(p, argparse.SUPPRESS)
+        _log_options(p, argparse.SUPPRESS)
         for a in p._actions:
             if isinstance(a, argparse._SubParsersAction):
                 _verbose_everywhere(a)

@@ -11,8 +11,9 @@ A program using sbplan shows its log as any other library's::
     import logging
     logging.basicConfig(level=logging.INFO)   # or logging.getLogger("sbplan").setLevel(...)
 
-The ``sbplan`` command calls :func:`configure`: warnings and errors by default, ``-v`` adds INFO,
-``-vv`` DEBUG, ``-q`` errors only, ``--log-json`` one JSON object per record (for machines).
+The ``sbplan`` command calls :func:`configure`: warnings and errors by default (but not the
+registry's warnings about plugins that failed to load), ``-v`` adds INFO and those, ``-vv``
+DEBUG, ``-q`` errors only, ``--log-json`` one JSON object per record (for machines).
 A record's structured fields are passed as ``extra={"data": {...}}``; the JSON form carries them
 as ``data``.
 """
@@ -90,6 +91,12 @@ class _StderrHandler(logging.StreamHandler):
         pass
 
 
+def _plugin_failures_only_when_asked(record: logging.LogRecord) -> bool:
+    """A plugin that failed to load is the registry's warning for those who ask (``-v``,
+    ``sbplan plugins``, a stage of it named): a command that does not need it says nothing."""
+    return not (record.name == "sbplan.registry" and record.levelno < logging.ERROR)
+
+
 def configure(*, verbosity: int = 0, quiet: bool = False, json_lines: bool = False,
               stream: TextIO | None = None) -> Callable[[], None]:
     """Show the ``sbplan`` log on ``stream`` (default stderr), as the command line does.
@@ -115,6 +122,8 @@ def configure(*, verbosity: int = 0, quiet: bool = False, json_lines: bool = Fal
              else logging.INFO if verbosity == 1 else logging.DEBUG)
     handler = logging.StreamHandler(stream) if stream is not None else _StderrHandler()
     handler.setFormatter(JsonFormatter() if json_lines else TextFormatter())
+    if verbosity <= 0:
+        handler.addFilter(_plugin_failures_only_when_asked)
     before = (logger.level, logger.propagate)
     logger.addHandler(handler)
     logger.setLevel(level)

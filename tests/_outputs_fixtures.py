@@ -35,9 +35,3 @@ def moved_floor():
     image, _ = render_scene(floor, SceneSpec(n_obstacles=3, effects={"motion": (4.0, -3.0, 0.4, 1.0)}), seed=3)
     return cal, image
 
-
-def own_lines(stderr: str) -> list[str]:
-    """stderr's lines without the warnings about *other* installed plugins that fail to load (a
-    shared environment may hold another checkout's entry points; tests/test_plugins.py checks
-    those warnings themselves)."""
-    return [line for line in stderr.splitlines() if not ("sbplan plugin '" in line and "failed to load" in line)]

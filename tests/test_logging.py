@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from _outputs_fixtures import ROOT, moved_floor, own_lines, paper
+from _outputs_fixtures import ROOT, moved_floor, paper
 
 #: Where printing is the job: the command line, its commands, and the ``sbplan bench`` commands'
 #: tables and progress lines (sbplan/bench/ is their implementation; evaluation.py, which the
@@ -96,17 +96,17 @@ def test_the_command_line_shows_the_log(moved, tmp_path):
         assert r.returncode == 0, r.stderr
         return r
 
-    default = own_lines(detect().stderr)
+    default = detect().stderr.splitlines()
     assert len(default) == 1 and default[0].startswith("sbplan: warning: ") and "calibrate --update" in default[0]
-    assert own_lines(detect("-q").stderr) == []
-    lines = [json.loads(line) for line in own_lines(detect("--log-json").stderr)]
+    assert detect("-q").stderr == ""
+    lines = [json.loads(line) for line in detect("--log-json").stderr.splitlines()]
     assert [(r["level"], r["logger"]) for r in lines] == [("warning", "sbplan.detection.detector")]
     assert lines[0]["data"]["camera"]["symbols_used"] >= 10 and lines[0]["time"].endswith("+00:00")
     debug = detect("-vv").stderr
     assert "sbplan: debug: [sbplan.detection.detector]" in debug and "ms (" in debug
     err = subprocess.run([sys.executable, "-m", "sbplan", "--log-json", "detect", str(tmp_path / "missing.png"), "-c",
                           str(tmp_path / "cal.json")], capture_output=True, text=True)
-    record, = [json.loads(line) for line in own_lines(err.stderr)]
+    record = json.loads(err.stderr)
     assert err.returncode != 0 and record["level"] == "error" and "missing.png" in record["message"]
 
 
@@ -126,3 +126,19 @@ def test_importing_sbplan_configures_no_output():
             "detector.log.warning('x'); print(logging.getLogger('sbplan').handlers)")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert r.returncode == 0 and r.stderr == "" and "NullHandler" in r.stdout
+
+
+def test_a_plugin_that_failed_to_load_shows_with_v_only(tmp_path):
+    """The registry's warning about a broken plugin is for those who ask: -v shows it, a command
+    that does not need the plugin says nothing (the hardening's rule), other warnings still show."""
+    dist = tmp_path / "broken_sbplan_plugin-0.1.dist-info"
+    dist.mkdir()
+    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: broken-sbplan-plugin\nVersion: 0.1\n")
+    (dist / "entry_points.txt").write_text("[sbplan]\nbroken = sbplan_module_that_does_not_exist\n")
+    import os
+
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(tmp_path), os.environ.get("PYTHONPATH", "")]))
+    run = lambda *a: subprocess.run([sys.executable, "-m", "sbplan", *a, "symbols", "list"],  # noqa: E731
+                                    capture_output=True, text=True, env=env)
+    assert run().stderr == ""
+    assert "plugin 'broken'" in run("-v").stderr

@@ -10,7 +10,7 @@ import sys
 import numpy as np
 import pytest
 
-from _outputs_fixtures import ROOT, own_lines, paper
+from _outputs_fixtures import ROOT, paper
 from sbplan.detection import exports
 from sbplan.errors import MapFormatError
 from sbplan.imageio import image_text, load_image, write_image
@@ -48,7 +48,7 @@ def test_plan_on_the_demo_occupancy_image_is_one_error_line(tmp_path):
     r = subprocess.run([sys.executable, "-m", "sbplan", "plan", "--obstacles", str(tmp_path / "occupancy.png"),
                         "--start", "0.1,1.4", "--goal", "3.9,1.6", "--radius", "0.15"], capture_output=True, text=True)
     assert r.returncode != 0 and r.stdout == ""
-    lines = own_lines(r.stderr.strip())
+    lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("sbplan: error:") and "result.json" in lines[0]
 
 
