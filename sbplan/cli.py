@@ -21,6 +21,7 @@ COMMANDS = {
     "calibrate": "sbplan.commands.calibrate",
     "detect": "sbplan.commands.detect",
     "plan": "sbplan.commands.plan",
+    "watch": "sbplan.commands.watch",
     "synth": "sbplan.commands.synth",
     "symbols": "sbplan.commands.symbols",
     "tui": "sbplan.commands.tui",

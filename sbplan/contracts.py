@@ -23,12 +23,16 @@ import math
 import typing
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
-from typing import Any, ClassVar, Sequence
+from typing import TYPE_CHECKING, Any, ClassVar, Sequence, TypedDict
 
 import numpy as np
 
 from .contours import Contour
 from .errors import InputError, SbplanError, StageError
+
+if TYPE_CHECKING:  # (the contracts are the foundation: the pipeline and the planner import them)
+    from .detection.grid import Grid
+    from .planning.route import Problem, Route
 
 if typing.TYPE_CHECKING:
     from .detection.bands import RowBands
@@ -197,7 +201,7 @@ class ContourApproximator(Stage):
         """Return the polygon's vertices, shape (M, 2) float64 ``(x, y)``, M >= 3 when possible,
         in the contour's traversal order, not closed (first vertex not repeated)."""
 
-    def approximate_many(self, contours: Sequence[Contour]) -> list[np.ndarray]:
+    def approximate_many(self, contours: Sequence[Contour]) -> Sequence[np.ndarray]:
         """:meth:`approximate` of every contour, in order. Detection calls this once per frame;
         override it when a batch is cheaper than one call per contour."""
         return [self.approximate(c) for c in contours]
@@ -246,7 +250,7 @@ class OccupancyMapper(Stage):
     kind = "mapper"
 
     @abstractmethod
-    def occupancy_image(self, grid: Any, occupied: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    def occupancy_image(self, grid: Grid, occupied: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
         """Return the occupancy image.
 
         Parameters
@@ -271,7 +275,7 @@ class Planner(Stage):
     kind = "planner"
 
     @abstractmethod
-    def solve(self, problem: Any, *, time_limit: float = 1.0) -> Any:
+    def solve(self, problem: Problem, *, time_limit: float = 1.0) -> Route:
         """Solve a ``sbplan.planning.Problem`` and return a ``sbplan.planning.Route``."""
 
 
@@ -394,3 +398,14 @@ def as_descriptors(descriptors, *, name: str = "descriptors") -> np.ndarray:
     if not np.isfinite(arr).all():
         raise InputError(f"{name}: descriptors contain NaN or infinite values")
     return arr
+
+
+class StageChoices(TypedDict, total=False):
+    """The detection stages chosen for :func:`sbplan.calibrate`, :func:`sbplan.detect` and
+    :class:`~sbplan.detection.Detector` (``**choices``): kind -> registered name or stage instance."""
+
+    binarizer: str | Binarizer
+    extractor: str | ContourExtractor
+    approximator: str | ContourApproximator
+    matcher: str | DescriptorMatcher
+    mapper: str | OccupancyMapper

@@ -20,6 +20,10 @@ from . import limits
 from .errors import ImageError, OutputError
 from .files import json_default, write_atomic, write_json  # noqa: F401  (re-exported)
 
+#: An image the pipeline takes: a path of an image file, or an array (H, W), (H, W, 3) or (H, W, 4)
+#: (see :func:`as_gray`).
+ImageInput = str | os.PathLike | np.ndarray
+
 
 def as_gray(image: Any, *, name: str = "image") -> np.ndarray:
     """Validate an image array and return it as 8-bit grayscale.

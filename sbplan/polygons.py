@@ -38,7 +38,7 @@ _SQRT2 = float(np.sqrt(2.0))
 
 # -- packing many outlines into one array ------------------------------------------------------
 
-class PolygonBatch(collections.abc.Sequence):
+class PolygonBatch(collections.abc.Sequence[np.ndarray]):
     """Many closed outlines stored back to back, which :func:`pack` takes without copying.
 
     Stages that make many polygons at once (an approximator's ``approximate_many``) return one, so

@@ -128,14 +128,22 @@ def _check_kind(kind: str) -> None:
         raise PluginError(f"unknown stage kind {kind!r}; kinds: {', '.join(KINDS)}")
 
 
-def get_plugin_manager(*, load_entry_points: bool = True) -> pluggy.PluginManager:
+class SbplanPluginManager(pluggy.PluginManager):
+    """A pluggy plugin manager that also remembers which plugins failed to load and which
+    distribution each entry point came from."""
+
+    def __init__(self) -> None:
+        super().__init__(hookspecs.PROJECT)
+        self.sbplan_failures: list[LoadFailure] = []
+        self.sbplan_origins: dict[str, str] = {}
+
+
+def get_plugin_manager(*, load_entry_points: bool = True) -> SbplanPluginManager:
     """A new plugin manager with sbplan's hookspecs and, unless told not to, every installed
     plugin of the ``sbplan`` entry-point group. Import failures are kept in ``pm.sbplan_failures``.
     """
-    pm = pluggy.PluginManager(hookspecs.PROJECT)
+    pm = SbplanPluginManager()
     pm.add_hookspecs(hookspecs)
-    pm.sbplan_failures = []  # type: ignore[attr-defined]
-    pm.sbplan_origins = {}  # type: ignore[attr-defined]
     if load_entry_points:
         for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
             origin = ep.dist.name if ep.dist is not None else ep.value
@@ -147,7 +155,7 @@ def get_plugin_manager(*, load_entry_points: bool = True) -> pluggy.PluginManage
             except Exception as exc:  # a broken plugin must not take the others down
                 pm.sbplan_failures.append(LoadFailure(ep.name, origin, f"{type(exc).__name__}: {exc}"))
                 continue
-            pm.sbplan_origins[ep.name] = origin  # type: ignore[attr-defined]
+            pm.sbplan_origins[ep.name] = origin
     pm.check_pending()
     return pm
 

@@ -85,6 +85,12 @@ def _pair(table: dict, key: str, where: str, required: bool = False) -> tuple[fl
     return x, y
 
 
+def _required_pair(table: dict, key: str, where: str) -> tuple[float, float]:
+    pair = _pair(table, key, where, required=True)
+    assert pair is not None  # _pair raises when a required key is missing
+    return pair
+
+
 def load_workspace(path: str | os.PathLike) -> Workspace:
     """Read a ``workspace.toml`` (or the one in a map folder)."""
     p = Path(path)

@@ -28,7 +28,7 @@ import pytest
 from _plugin_install import install_plugin
 
 ROOT = Path(__file__).resolve().parents[1]
-DOCS = ["getting-started.md", "operator-guide.md", "plugin-guide.md", "api.md"]
+DOCS = ["getting-started.md", "operator-guide.md", "plugin-guide.md", "api.md", "live.md"]
 FENCE = re.compile(r"^```(\w*)[^\n]*\n(.*?)^```", re.S | re.M)
 FLAGS = doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE
 

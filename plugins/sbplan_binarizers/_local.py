@@ -126,7 +126,9 @@ class LocalThresholdBinarizer(Binarizer):
         return _reduce(gray, f), max(3, int(round(window / f))), f
 
     def _from_level(self, level: np.ndarray) -> np.ndarray:
-        return np.minimum(cv2.convertScaleAbs(level, alpha=1.0 - self.offset), cv2.subtract(level, self.min_contrast))
+        # OpenCV takes a number as src2 (a scalar); its stubs accept arrays only
+        below = cv2.subtract(level, self.min_contrast)  # type: ignore[call-overload]
+        return np.minimum(cv2.convertScaleAbs(level, alpha=1.0 - self.offset), below)
 
     def _open(self, ink: np.ndarray) -> np.ndarray:
         opening = 3 if self.opening == -1 else self.opening

@@ -12,24 +12,28 @@ from __future__ import annotations
 import numpy as np
 from shapely import affinity
 from shapely.geometry import Point, Polygon, box
+from shapely.geometry.base import BaseGeometry
 from shapely.geometry.polygon import orient
 from shapely.ops import unary_union
 
 
-def normalize(poly: Polygon) -> list[np.ndarray]:
-    """Scale ``poly`` into the unit box and return ``[outline, *holes]`` (see module doc)."""
-    poly = poly.simplify(0.0)  # drops collinear vertices left by unions
+def normalize(shape: BaseGeometry) -> list[np.ndarray]:
+    """Scale ``shape`` (one polygon) into the unit box and return ``[outline, *holes]`` (see module doc)."""
+    poly = shape.simplify(0.0)  # drops collinear vertices left by unions
+    if not isinstance(poly, Polygon):
+        raise ValueError(f"a symbol is one polygon, got a {poly.geom_type}")
     x0, y0, x1, y1 = poly.bounds
     s = 1.0 / max(x1 - x0, y1 - y0)
     w, h = (x1 - x0) * s, (y1 - y0) * s
-    poly = affinity.affine_transform(poly, [s, 0, 0, s, -x0 * s + (1 - w) / 2, -y0 * s + (1 - h) / 2])
+    scaled = affinity.affine_transform(poly, [s, 0, 0, s, -x0 * s + (1 - w) / 2, -y0 * s + (1 - h) / 2])
+    assert isinstance(scaled, Polygon)  # an affine map keeps a polygon a polygon
     # shapely's sign=-1 gives a clockwise exterior in y-up terms = counter-clockwise as displayed.
-    poly = orient(poly, sign=-1.0)
-    rings = [poly.exterior, *poly.interiors]
+    oriented = orient(scaled, sign=-1.0)
+    rings = [oriented.exterior, *oriented.interiors]
     return [np.asarray(r.coords, dtype=np.float64)[:-1] for r in rings]
 
 
-def boxes(*rects: tuple[float, float, float, float]) -> Polygon:
+def boxes(*rects: tuple[float, float, float, float]) -> BaseGeometry:
     """Union of axis-aligned rectangles ``(x0, y0, x1, y1)``."""
     return unary_union([box(*r) for r in rects])
 
@@ -53,7 +57,7 @@ def regular(n: int, phase: float = 0.0) -> Polygon:
     return Polygon(np.c_[np.cos(a), np.sin(a)])
 
 
-def _builders() -> dict[str, tuple[str, Polygon]]:
+def _builders() -> dict[str, tuple[str, BaseGeometry]]:
     t = 0.28  # stroke width of the block letters and crosses
     c = circle()
     return {

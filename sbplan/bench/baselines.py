@@ -32,6 +32,7 @@ import cv2
 import numpy as np
 
 from ..errors import InputError
+from ..synth.aruco import marker_dictionary
 
 
 def _gray(image: np.ndarray, name: str) -> np.ndarray:
@@ -75,8 +76,6 @@ class ArucoGrid:
 
     def __init__(self, reference: np.ndarray, *, rows: int, cols: int, dictionary: str | None = None,
                  max_offset: float = 0.35, parameters: dict | None = None):
-        from ..synth.aruco import marker_dictionary
-
         reference = _gray(reference, "reference")
         if int(rows) < 1 or int(cols) < 1:
             raise InputError(f"rows/cols: expected >= 1, got {rows} x {cols}")

@@ -24,10 +24,20 @@ import json
 import math
 import platform
 import time
-from typing import Any
+from typing import Any, Callable, cast
 
 import cv2
 import numpy as np
+
+from sbplan import registry
+from sbplan.bench.baselines import AbsDiff, ArucoGrid, Mog2
+from sbplan.bench.evaluation import Scores, condition_scenes, score_cells
+from sbplan.contracts import StageChoices
+from sbplan.detection import Detector
+from sbplan.detection.calibration import DEFAULT_STAGES, calibrate
+from sbplan.errors import InputError, SbplanError
+from sbplan.imageio import write_image
+from sbplan.synth import CONDITIONS, FloorSpec
 
 HELP = "cell occupancy: sbplan vs ArUco grid vs background subtraction, per condition"
 KINDS = ("binarizer", "extractor", "approximator", "matcher", "mapper")
@@ -72,9 +82,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _conditions(given: list[str] | None) -> list[str]:
-    from sbplan.errors import InputError
-    from sbplan.synth import CONDITIONS
-
     if not given:
         return list(CONDITIONS)
     names = [n for g in given for n in g.split(",") if n]
@@ -84,18 +91,15 @@ def _conditions(given: list[str] | None) -> list[str]:
     return list(dict.fromkeys(names))
 
 
-def sbplan_variants(*, all_variants: bool = True) -> list[tuple[str, dict[str, str]]]:
+def sbplan_variants(*, all_variants: bool = True) -> list[tuple[str, StageChoices]]:
     """``(label, stage overrides)``: the default pipeline, then one registered stage swapped at a time."""
-    from sbplan import registry
-    from sbplan.detection.calibration import DEFAULT_STAGES
-
-    out = [(DEFAULT, {})]
+    out: list[tuple[str, StageChoices]] = [(DEFAULT, {})]
     if not all_variants:
         return out
     for kind in KINDS:
         for name in getattr(registry, f"{kind}_names")():
             if name != DEFAULT_STAGES[kind]:
-                out.append((f"sbplan {kind}={name}", {kind: name}))
+                out.append((f"sbplan {kind}={name}", cast(StageChoices, {kind: name})))
     return out
 
 
@@ -131,13 +135,6 @@ def measure(*, conditions: list[str] | None = None, scenes: int = 5, size: tuple
         ``checks``: per condition whether the default's F1 is at least every baseline's, and its
         time over the ArUco grid's; ``setup``: what was run.
     """
-    from sbplan.bench.baselines import AbsDiff, ArucoGrid, Mog2
-    from sbplan.detection import Detector
-    from sbplan.detection.calibration import calibrate
-    from sbplan.errors import InputError, SbplanError
-    from sbplan.bench.evaluation import Scores, condition_scenes, score_cells
-    from sbplan.synth import FloorSpec
-
     names = _conditions(conditions)
     for opt, v, lo in (("--scenes", scenes, 1), ("--repeat", repeat, 1), ("--slow-scenes", slow_scenes, 0)):
         if isinstance(v, bool) or not isinstance(v, int) or v < lo:
@@ -300,20 +297,19 @@ def plot(result: dict[str, Any], *, width: int = 1600, height: int = 1000) -> np
              f"{s['scenes']} scene{'s' if s['scenes'] != 1 else ''} per condition, 1 thread")
     cv2.putText(img, title, (left, 35), font, 0.8, (0, 0, 0), 2, cv2.LINE_AA)
     panel_h = (height - top - 150) // 2
-    panels = [("F1", "f1", top, lambda v: v, [0, 0.25, 0.5, 0.75, 1.0], "{:.2f}"),
-              ("median ms / frame (log)", "median_ms", top + panel_h + 60, None, None, None)]
     plot_w = width - left - right
     group = plot_w / max(len(conds), 1)
     bar = group * 0.8 / len(methods)
     times = [by[(c, m)]["median_ms"] for c in conds for m in methods if not math.isnan(by[(c, m)]["median_ms"])]
     lo_t = 10 ** math.floor(math.log10(max(min(times, default=0.1), 1e-3)))
     hi_t = 10 ** math.ceil(math.log10(max(max(times, default=1.0), lo_t * 10)))
+    span = math.log10(hi_t) - math.log10(lo_t)
+    panels: list[tuple[str, str, int, Callable[[float], float], list[float], str]] = [
+        ("F1", "f1", top, lambda v: v, [0, 0.25, 0.5, 0.75, 1.0], "{:.2f}"),
+        ("median ms / frame (log)", "median_ms", top + panel_h + 60,
+         lambda v: (math.log10(max(v, lo_t)) - math.log10(lo_t)) / span,
+         [lo_t * 10 ** k for k in range(int(round(span)) + 1)], "{:g}")]
     for label, key, y0, scale, ticks, tick_fmt in panels:
-        if scale is None:
-            span = math.log10(hi_t) - math.log10(lo_t)
-            scale = lambda v, span=span: (math.log10(max(v, lo_t)) - math.log10(lo_t)) / span  # noqa: E731
-            ticks = [lo_t * 10 ** k for k in range(int(round(span)) + 1)]
-            tick_fmt = "{:g}"
         y1 = y0 + panel_h
         cv2.putText(img, label, (left, y0 - 10), font, 0.7, (0, 0, 0), 2, cv2.LINE_AA)
         for t in ticks:
@@ -359,8 +355,6 @@ def run(args: argparse.Namespace) -> int:
     result = measure(conditions=args.conditions, scenes=args.scenes, size=args.size, grid=args.grid, seed=args.seed,
                      repeat=args.repeat, slow_scenes=args.slow_scenes, all_variants=args.variants == "all")
     if args.plot:
-        from sbplan.imageio import write_image
-
         write_image(args.plot, plot(result))
     if args.json:
         print(json.dumps(result, indent=1, default=lambda o: None))

@@ -12,6 +12,7 @@ from typing import Any, Iterator
 import numpy as np
 
 from ..errors import InputError
+from ..synth import FloorSpec, SceneSpec, render_reference, render_scene
 
 
 @dataclass(frozen=True)
@@ -68,8 +69,6 @@ def condition_scenes(condition: str, *, scenes: int = 5, size: tuple[int, int] =
 
     The reference shares the scenes' camera (tilt, distortion) and is lit with base lighting.
     """
-    from ..synth import FloorSpec, SceneSpec, render_reference, render_scene
-
     width, height = size
     cols, rows = grid
     extra = dict(floor_options)

@@ -12,12 +12,23 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import json
+import os
+import platform
 import statistics
 import sys
+import threading
 import time
 from pathlib import Path
+from typing import Callable, TypeVar
 
 import numpy as np
+
+from .. import registry
+from ..errors import InputError, SbplanError
+from .silhouettes import load_silhouettes, make_silhouettes
+
+T = TypeVar("T")
 
 HELP = "shape retrieval: Bullseye score and describe/compare times of every matcher"
 DESCRIPTION = (HELP + ". Each DIR holds labelled silhouettes <class>-<n>.png (white on black or black on "
@@ -62,8 +73,6 @@ def bullseye(distances: np.ndarray, labels) -> np.ndarray:
     -------
     ndarray of shape (n,)
     """
-    from ..errors import InputError
-
     d = np.array(distances, dtype=np.float64)
     n = len(labels)
     if d.shape != (n, n):
@@ -102,7 +111,6 @@ class _Progress:
         if not self.enabled:
             yield
             return
-        import threading
 
         done = threading.Event()
         t0 = time.perf_counter()
@@ -121,7 +129,7 @@ class _Progress:
             self.say(f"  {text}: {time.perf_counter() - t0:.2f} s")
 
 
-def _timed(fn) -> tuple[float, object]:
+def _timed(fn: Callable[[], T]) -> tuple[float, T]:
     t0 = time.perf_counter()
     out = fn()
     return time.perf_counter() - t0, out
@@ -181,12 +189,6 @@ def evaluate(matcher, outlines, labels, *, repeat: int = 5, progress: _Progress 
 
 
 def run(args: argparse.Namespace) -> int:
-    import json
-
-    from .. import registry
-    from ..errors import InputError
-    from .silhouettes import load_silhouettes, make_silhouettes
-
     if args.repeat < 1:
         raise InputError(f"--repeat must be >= 1, got {args.repeat}")
     if args.make:
@@ -217,11 +219,6 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _bench_set(folder, data, matchers, approx, args, progress: _Progress) -> dict:
-    import os
-    import platform
-
-    from ..errors import SbplanError
-
     outlines = data.outlines
     if approx is not None:
         outlines = [approx.approximate(o) for o in outlines]

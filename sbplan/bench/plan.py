@@ -22,11 +22,28 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import multiprocessing as mp
+import os
+import platform
 import statistics
+import sys
 import time
+from importlib.metadata import version
 from pathlib import Path
 
 import numpy as np
+import shapely
+from ompl import tools as ot
+from shapely import affinity
+from shapely.geometry import LineString, Polygon, box
+
+from .. import replan
+from ..errors import InputError, PlanningError
+from ..planning import PlanningMap, load_obstacles
+from ..planning.ompl_planners import OMPL_PLANNERS, allocate, make_setup, quiet, set_query, solve_ompl
+from ..synth.floor import FloorSpec
+from ..synth.maps import floor_to_world
+from ..workspace import load_workspace
 
 HELP = "route planners: path length vs the exact optimum and query times on random worlds, mazes, maps"
 DESCRIPTION = HELP + ". See the module docstring (or docs/planning.md) for what is timed."
@@ -56,9 +73,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 # -- worlds --------------------------------------------------------------------------------------
 def rect_world(n: int, seed: int) -> list:
     """n rotated rectangles in [0, SIZE]^2 (shapely polygons), side ~ U(0.5, 1.5) * 40 / sqrt(n)."""
-    from shapely import affinity
-    from shapely.geometry import box
-
     rng = np.random.default_rng([seed, n])
     s = 40.0 / math.sqrt(n)
     out = []
@@ -71,10 +85,8 @@ def rect_world(n: int, seed: int) -> list:
 
 def _free_queries(pm, rng, k: int, *, min_dist: float) -> list:
     """k (start, goal) pairs of free points at least min_dist apart, connected (solvable)."""
-    from ..errors import PlanningError
-
     x0, y0, x1, y1 = pm.bounds
-    out = []
+    out: list[tuple[np.ndarray, np.ndarray]] = []
     for _ in range(200 * k):
         if len(out) == k:
             break
@@ -91,8 +103,6 @@ def _free_queries(pm, rng, k: int, *, min_dist: float) -> list:
 
 def worlds(args, seed: int, quick: bool):
     """Yield (name, obstacles, bounds, radius, queries) per world."""
-    from ..planning import PlanningMap, load_obstacles
-
     nq = args.queries or (10 if quick else 40)
     wanted = {w for w in args.worlds.split(",") if w}
     for n in RECT_COUNTS:
@@ -134,12 +144,6 @@ def worlds(args, seed: int, quick: bool):
 def map_world(folder: Path):
     """True obstacles of a map's scene-01.json in metres, its bounds (the grid's cells), radius,
     start and goal; None when the folder lacks what is needed."""
-    from shapely.geometry import Polygon
-
-    from ..synth.floor import FloorSpec
-    from ..synth.maps import floor_to_world
-    from ..workspace import load_workspace
-
     if not (folder / "workspace.toml").is_file():
         return None
     ws = load_workspace(folder)
@@ -159,13 +163,6 @@ def _median_ms(v) -> float:
 
 
 def measure_world(name, obs, bounds, radius, queries, *, planners, time_limit, n_ompl, seed) -> dict:
-    from shapely.geometry import LineString, box
-
-    from .. import replan
-    from ..errors import PlanningError
-    from ..planning import PlanningMap
-    from ..planning.ompl_planners import solve_ompl
-
     build, cold, warm, lengths = [], [], [], []
     for s, g in queries:
         # Release the previous query's map and route before the clock starts: rebinding inside the
@@ -253,22 +250,15 @@ def ompl_benchmark_log(name, obs, bounds, radius, query, planners, time_limit, p
     ompl.tools.Benchmark leaves C++ reference cycles that nanobind reports as leaks at interpreter
     exit (OMPL's, not sbplan's; the memory goes with the child).
     """
-    import multiprocessing as mp
-
     ctx = mp.get_context("fork")
     proc = ctx.Process(target=_benchmark_child, args=(name, obs, bounds, radius, query, planners, time_limit, path))
     proc.start()
     proc.join()
     if proc.exitcode != 0 or not Path(path).is_file():
-        from ..errors import PlanningError
-
         raise PlanningError(f"--ompl-log: ompl.tools.Benchmark failed on {name} (exit code {proc.exitcode})")
 
 
 def _benchmark_child(name, obs, bounds, radius, query, planners, time_limit, path) -> None:
-    import os
-    import sys
-
     code = 1
     try:
         _run_benchmark(name, obs, bounds, radius, query, planners, time_limit, path)
@@ -280,13 +270,6 @@ def _benchmark_child(name, obs, bounds, radius, query, planners, time_limit, pat
 
 
 def _run_benchmark(name, obs, bounds, radius, query, planners, time_limit, path) -> None:
-    import os
-
-    from ompl import tools as ot
-
-    from ..planning import PlanningMap
-    from ..planning.ompl_planners import allocate, make_setup, set_query
-
     pm = PlanningMap(obs, robot_radius=radius, bounds=bounds)
     ss = make_setup(pm)
     set_query(ss, query[0], query[1])
@@ -303,9 +286,6 @@ def _run_benchmark(name, obs, bounds, radius, query, planners, time_limit, path)
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..errors import InputError
-    from ..planning.ompl_planners import OMPL_PLANNERS, quiet
-
     quick = args.quick
     tl = args.time_limit if args.time_limit is not None else (0.2 if quick else 1.0)
     n_ompl = args.ompl_queries if args.ompl_queries is not None else (1 if quick else 3)
@@ -345,12 +325,6 @@ def run(args: argparse.Namespace) -> int:
 
 
 def print_table(rows, planners, tl, n_ompl, seed) -> None:
-    import platform
-
-    from importlib.metadata import version
-
-    import shapely
-
     print(f"seed {seed}; OMPL planners: {tl:g} s per solve, simplified, first {n_ompl} queries of each world; "
           f"{platform.machine()}, Python {platform.python_version()}, numpy {np.__version__}, "
           f"shapely {shapely.__version__}, OMPL {version('ompl')}")

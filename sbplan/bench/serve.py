@@ -31,7 +31,15 @@ import tempfile
 import time
 from pathlib import Path
 
+import cv2
 import numpy as np
+import shapely
+
+import sbplan
+from ..detection import calibrate
+from ..errors import InputError, PlanningError
+from ..planning import load_obstacles
+from ..synth import FloorSpec, SceneSpec, render_reference, render_scene
 
 HELP = "the planner service: route requests/s and p50/p99 latency with 1, 8, 32 concurrent clients"
 DESCRIPTION = HELP + ". See the module docstring (or docs/benchmarks.md) for the floor and the load."
@@ -57,8 +65,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def floor_images(seed: int):
     """(reference, scene, obstacle cells) of the benchmark's floor: 50 one-cell boxes on cells
     two apart in both directions, so that no two touch."""
-    from ..synth import FloorSpec, SceneSpec, render_reference, render_scene
-
     floor = FloorSpec(width=1280, height=960, cols=COLS, rows=ROWS)
     rng = np.random.default_rng([seed, 19])
     sites = [(r, c) for r in range(0, ROWS, 2) for c in range(0, COLS, 2)]
@@ -78,11 +84,6 @@ def floor_images(seed: int):
 def free_queries(obstacles, bounds, n: int, seed: int) -> list[bytes]:
     """n request bodies: seeded start/goal pairs where a robot can stand (farther than its radius
     from every obstacle), at least a third of the floor apart, that sbplan.plan solves."""
-    import shapely
-
-    import sbplan
-    from ..errors import PlanningError
-
     rng = np.random.default_rng([seed, 23])
     x0, y0, x1, y1 = bounds
     span = min(x1 - x0, y1 - y0)
@@ -112,13 +113,15 @@ class Server:
         self.log = tempfile.TemporaryFile("w+")
         self.proc = subprocess.Popen([sys.executable, "-m", "sbplan", "serve", "-c", str(calibration), "--port", "0",
                                       *extra], cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=self.log, text=True)
+        assert self.proc.stdout is not None  # stdout=PIPE
         line = self.proc.stdout.readline()
         if not line.startswith("sbplan serve: http://"):
             self.proc.kill()
             self.proc.wait()
             self.log.seek(0)
             raise RuntimeError(f"sbplan serve did not start: {line}{self.log.read()}")
-        self.host, port = line.split("http://", 1)[1].split()[0].rsplit(":", 1)
+        host, port = line.split("http://", 1)[1].split()[0].rsplit(":", 1)
+        self.host = host
         self.port = int(port)
         self._wait_until_up()
 
@@ -235,11 +238,6 @@ def measure(*, clients=(1, 8, 32), paced=((32, 5.0),), seconds: float = 3.0, war
             repeats: int = 3, queries: int = 400, seed: int = 0, progress=None) -> dict:
     """Build the floor, start the server, detect the floor through it, then load it: closed loop
     with each of ``clients``, then each ``(clients, rate)`` of ``paced``."""
-    import cv2
-
-    from ..detection import calibrate
-    from ..planning import load_obstacles
-
     say = progress or (lambda text: None)
     say("rendering and calibrating the floor")
     reference, scene, cells = floor_images(seed)
@@ -329,8 +327,6 @@ def format_table(result: dict) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..errors import InputError
-
     try:
         clients = tuple(int(v) for v in args.clients.split(","))
     except ValueError:

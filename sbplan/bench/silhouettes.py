@@ -14,6 +14,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -34,7 +35,7 @@ HARD_CASES = {
 }
 
 #: Letter-like stroke skeletons on a unit box (y down); each is a list of polylines.
-_LETTERS = {
+_LETTERS: dict[str, list[list[tuple[float, float]]]] = {
     "L": [[(0, 0), (0, 1), (0.7, 1)]],
     "T": [[(0, 0), (1, 0)], [(0.5, 0), (0.5, 1)]],
     "E": [[(0.8, 0), (0, 0), (0, 1), (0.8, 1)], [(0, 0.5), (0.6, 0.5)]],
@@ -54,16 +55,17 @@ _LETTERS = {
 class _ClassSpec:
     name: str
     family: str
-    params: dict
+    params: dict[str, Any]
 
 
 def _class_specs(classes: int, rng: np.random.Generator) -> list[_ClassSpec]:
     letters = list(_LETTERS)
     rng.shuffle(letters)
-    specs = []
+    specs: list[_ClassSpec] = []
     for i in range(classes):
         family = FAMILIES[i % len(FAMILIES)]
         name = f"{family}{i:02d}"
+        params: dict[str, Any]  # per family: arrays, numbers, a letter, or the base class's spec
         if family == "polygon":
             n = int(rng.integers(5, 10))
             t = np.sort(rng.uniform(0, 2 * np.pi, n))

@@ -23,6 +23,9 @@ from typing import Any, Callable
 import cv2
 import numpy as np
 
+from sbplan import registry
+from sbplan.errors import InputError
+
 HELP = "time contour extraction, approximation and descriptors on a 1280x960 floor"
 N_SYMBOLS = 50
 
@@ -35,7 +38,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def floor_image(*, seed: int = 0) -> tuple[np.ndarray, str]:
     """The benchmark frame, shape (960, 1280) uint8, and how it was made."""
-    try:
+    try:  # here, not at the top: the fallback frame serves an installation without sbplan.synth
         from sbplan.synth import FloorSpec, render_reference
     except ImportError:
         return _fallback_floor(seed=seed), "cv2.fillPoly fallback, 50 symbols"
@@ -72,9 +75,6 @@ def _time(fn: Callable[[], Any], repeat: int) -> dict[str, float]:
 
 def measure(*, repeat: int = 30, seed: int = 0) -> dict[str, Any]:
     """Run the benchmark and return its results as a dict (what ``--json`` prints)."""
-    from sbplan import registry
-    from sbplan.errors import InputError
-
     if repeat < 1:
         raise InputError(f"--repeat: must be at least 1, got {repeat}")
     cv2.setNumThreads(1)

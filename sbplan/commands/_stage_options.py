@@ -3,6 +3,10 @@
 from __future__ import annotations
 
 import argparse
+from typing import TYPE_CHECKING, cast
+
+if TYPE_CHECKING:
+    from ..contracts import StageChoices
 
 STAGE_KINDS = ("binarizer", "extractor", "approximator", "matcher", "mapper")
 
@@ -13,11 +17,12 @@ def add_stage_arguments(parser: argparse.ArgumentParser) -> None:
         group.add_argument(f"--{kind}", metavar="NAME", default=None, help=f"the {kind} stage")
 
 
-def stage_choices(args: argparse.Namespace) -> dict[str, str]:
+def stage_choices(args: argparse.Namespace) -> StageChoices:
     """The stages named on the command line, validated against the registry (clear error if unknown)."""
+    # imported when the command runs: the CLI starts without loading numpy and the plugins
     from .. import registry
 
     chosen = {k: getattr(args, k) for k in STAGE_KINDS if getattr(args, k, None)}
     for kind, name in chosen.items():
         registry.registry().info(kind, name)  # raises UnknownStageError listing the installed names
-    return chosen
+    return cast("StageChoices", chosen)  # keys from STAGE_KINDS, values names

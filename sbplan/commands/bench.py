@@ -14,6 +14,7 @@ BENCHMARKS: dict[str, str] = {
     "detect": "sbplan.bench.detect",
     "plan": "sbplan.bench.plan",
     "serve": "sbplan.bench.serve",
+    "watch": "sbplan.bench.watch",
 }
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from ..errors import InputError
 from ._stage_options import add_stage_arguments, stage_choices
 
 HELP = "calibrate on a reference image of the empty floor and write a calibration file"
@@ -27,8 +28,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # imported when the command runs: the CLI starts without loading numpy, OpenCV and the pipeline
     from ..detection.calibration import calibrate, load_calibration, update_calibration
-    from ..errors import InputError
     from ..files import check_outputs
 
     if args.update is not None:

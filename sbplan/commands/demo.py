@@ -49,6 +49,7 @@ def demo_files(calibration, image, detection, route=None) -> dict[str, bytes | s
 
 
 def run(args: argparse.Namespace) -> int:
+    # imported when the command runs: the CLI starts without loading numpy, OpenCV and the pipeline
     from ..detection.calibration import calibrate
     from ..detection import Detector
     from ..errors import MapFormatError

@@ -25,6 +25,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def summary_lines(detection) -> list[str]:
+    # imported when the command runs: the CLI starts without loading numpy, OpenCV and the pipeline
     from ..detection.obstacles import axis_angle
 
     lines = [
@@ -46,6 +47,7 @@ def summary_lines(detection) -> list[str]:
 
 
 def run(args: argparse.Namespace) -> int:
+    # imported when the command runs: the CLI starts without loading numpy, OpenCV and the pipeline
     from ..detection import exports
     from ..detection import Detector
     from ..detection.calibration import load_calibration

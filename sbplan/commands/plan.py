@@ -13,12 +13,18 @@ DESCRIPTION = (
     "(< 128) are obstacles.")
 
 
-def _xy(text: str) -> tuple[float, float]:
-    try:
-        x, y = (float(v) for v in text.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected X,Y, got {text!r}") from None
-    return x, y
+def comma_pair(label: str):
+    """An argparse type: two numbers separated by a comma; ``label`` names them in the error."""
+    def parse(text: str) -> tuple[float, float]:
+        try:
+            a, b = (float(v) for v in text.split(","))
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {label}, got {text!r}") from None
+        return a, b
+    return parse
+
+
+_xy = comma_pair("X,Y")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -41,6 +47,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # imported when the command runs: the CLI starts without loading numpy, OpenCV and the pipeline
     from ..files import check_outputs
     from ..imageio import write_image
     from ..planning import PlanningMap, load_obstacles, plan

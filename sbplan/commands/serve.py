@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import os
 
+from ..errors import InputError, PluginError
+
 HELP = "serve one workspace over HTTP and WebSocket: obstacles, nav2 map, routes pushed to robots"
 DESCRIPTION = (
     "Serve a calibration's floor: POST frames (or --source DIR) to detect obstacles, plan routes, get "
@@ -40,8 +42,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from ..errors import InputError, PluginError
-
+    # imported when the command runs: the CLI starts without numpy, OpenCV or the service, and the
+    # service's libraries come with the serve extra
     try:
         import fastapi  # noqa: F401
         import uvicorn  # noqa: F401

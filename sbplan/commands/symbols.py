@@ -6,6 +6,10 @@ import argparse
 import json
 import sys
 import time
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from rich.progress import Progress, TaskID
 
 HELP = "choose the reference symbol (rank candidates), print floor tiles, show a symbol"
 DESCRIPTION = ("Paper section 3: rank candidate symbols by equations (2)-(4), regularity and confusion "
@@ -77,13 +81,14 @@ class _Progress:
     def __init__(self, delay: float = 1.0):
         self.t0 = time.perf_counter()
         self.delay = delay
-        self.bar = None
-        self.task = None
+        self.bar: Progress | None = None
+        self.task: TaskID | None = None
 
     def __call__(self, done: int, total: int, name: str) -> None:
         if self.bar is None:
             if time.perf_counter() - self.t0 < self.delay or done >= total:
                 return
+            # rich loads only when ranking has taken long enough to show a bar
             from rich.console import Console
             from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
@@ -92,7 +97,8 @@ class _Progress:
                                 console=Console(stderr=True), transient=True)
             self.bar.start()
             self.task = self.bar.add_task(name, total=total)
-        self.bar.update(self.task, completed=done, description=name)
+        if self.task is not None:  # (made with the bar)
+            self.bar.update(self.task, completed=done, description=name)
 
     def close(self) -> None:
         if self.bar is not None:
@@ -100,6 +106,7 @@ class _Progress:
 
 
 def _rank(args: argparse.Namespace) -> int:
+    # imported when the command runs: the CLI starts without loading numpy, OpenCV and rich
     from ..imageio import write_json
     from ..symbols.rank import rank_symbols
 
@@ -142,6 +149,7 @@ def _rank(args: argparse.Namespace) -> int:
 
 
 def _render(args: argparse.Namespace) -> int:
+    # imported when the command runs: the CLI starts without loading numpy, OpenCV and rich
     from ..symbols.tile import write_tile
 
     tile = write_tile(args.output, args.name, fmt=args.format, dpi=args.dpi, size=args.size,
@@ -154,6 +162,7 @@ def _render(args: argparse.Namespace) -> int:
 
 
 def _show(args: argparse.Namespace) -> int:
+    # imported when the command runs: the CLI starts without loading numpy, OpenCV and rich
     from ..symbols.terminal import draw
 
     print(draw(args.name, width=args.width, mode=args.mode, angle=args.angle, invert=args.invert))
@@ -161,6 +170,7 @@ def _show(args: argparse.Namespace) -> int:
 
 
 def _list(args: argparse.Namespace) -> int:
+    # imported when the command runs: the CLI starts without loading numpy, OpenCV and rich
     from .. import registry
 
     for name, info in registry.registry().symbols().items():

@@ -4,10 +4,15 @@ from __future__ import annotations
 
 import argparse
 import re
+from pathlib import Path
+
+from ..errors import InputError, SceneError
 
 HELP = "render a synthetic floor with obstacles and ground truth, or rebuild an example map"
 DESCRIPTION = ("Render reference.png (the empty floor), scene-XX.png with obstacles and scene-XX.json ground "
-               "truth into a folder; or rebuild a named map exactly (--map); or list maps and conditions (--list).")
+               "truth into a folder; or a camera stream with per-frame truth (--sequence avi|folder: obstacles "
+               "entering, moving and leaving, a person's shadow, a camera bump, dropped and corrupt frames); or "
+               "rebuild a named map exactly (--map); or list maps and conditions (--list).")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -22,13 +27,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--obstacles", type=int, default=3, metavar="N", help="obstacles per scene (default: %(default)s)")
     parser.add_argument("--condition", default="clean", metavar="NAME",
                         help="adverse condition of the scenes (default: %(default)s; see --list)")
+    parser.add_argument("--sequence", choices=("avi", "folder"), metavar="KIND",
+                        help="write a stream instead of scenes: avi (MJPG video) or folder (PNG frames), with "
+                             "reference.png, truth.jsonl and sequence.json (see docs/live.md)")
+    parser.add_argument("--frames", type=int, default=48, metavar="N", help="frames of a --sequence (default: %(default)s)")
+    parser.add_argument("--fps", type=float, default=10.0, metavar="F",
+                        help="frame rate of a --sequence (default: %(default)s)")
     parser.add_argument("--seed", type=int, default=0, metavar="S",
                         help="seed: floor texture and reference noise use S, scene k uses S + k (default: %(default)s)")
 
 
 def _pair(text: str, option: str, sep: str = "x") -> tuple[int, int]:
-    from ..errors import InputError
-
     m = re.fullmatch(rf"\s*(-?\d+)\s*{sep}\s*(-?\d+)\s*", text or "")
     if not m:
         raise InputError(f"{option}: expected two integers like 1280{sep}960, got {text!r}")
@@ -36,9 +45,7 @@ def _pair(text: str, option: str, sep: str = "x") -> tuple[int, int]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
-    from ..errors import InputError, SceneError
+    # imported when the command runs: the CLI starts without loading numpy, OpenCV and the pipeline
     from ..imageio import write_atomic, write_image
     from ..synth import CONDITIONS, DEFAULT_SYMBOL, FloorSpec, SceneSpec, render_reference, render_scene
     from ..synth.maps import MAPS, build_map
@@ -67,8 +74,17 @@ def run(args: argparse.Namespace) -> int:
         raise SceneError(f"--seed: must be >= 0, got {args.seed}")
     floor = FloorSpec(width=width, height=height, cols=cols, rows=rows, symbol=args.symbol or DEFAULT_SYMBOL,
                       floor_seed=args.seed)
-    scene = SceneSpec(n_obstacles=args.obstacles, condition=args.condition)
     out = Path(args.output)
+    if args.sequence:
+        from ..synth.sequence import demo_sequence, write_sequence
+
+        spec = demo_sequence(floor, n_frames=args.frames, fps=args.fps, condition=args.condition)
+        stream = write_sequence(out, floor, spec, seed=args.seed, kind=args.sequence)
+        print(f"wrote {out}/: reference.png, {stream.name}{'/' if args.sequence == 'folder' else ''}, truth.jsonl, "
+              f"sequence.json ({args.frames} frames at {args.fps:g} fps, {cols} x {rows} symbols, {width} x {height} px, "
+              f"condition {args.condition})")
+        return 0
+    scene = SceneSpec(n_obstacles=args.obstacles, condition=args.condition)
     write_image(out / "reference.png", render_reference(floor, seed=args.seed, condition=args.condition))
     for k in range(1, args.scenes + 1):
         img, truth = render_scene(floor, scene, seed=args.seed + k)

@@ -3,6 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import sys
+from pathlib import Path
+
+from ..errors import InputError, MapFormatError
 
 HELP = "the operator's terminal app: calibrate, detect, plan and replan"
 
@@ -18,12 +22,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import sys
-
-    from pathlib import Path
-
-    from ..errors import InputError, MapFormatError
-
     if args.map is not None and not Path(args.map).is_dir():
         if Path(args.map).exists():
             raise MapFormatError(f"{args.map}: is a file; 'sbplan tui' takes a map folder (reference.png, "
@@ -31,6 +29,7 @@ def run(args: argparse.Namespace) -> int:
         raise MapFormatError(f"{args.map}: no such map folder")
     if not sys.stdout.isatty():
         raise InputError("tui: standard output is not a terminal; run 'sbplan tui' in a terminal")
+    # imported when the command runs: the CLI starts without loading Textual
     from ..tui.launch import launch
 
     launch(args.map, auto=not args.no_auto, images=args.images)

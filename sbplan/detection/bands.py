@@ -47,7 +47,7 @@ class RowBands:
 
     __slots__ = ("starts", "stops", "offsets", "shape", "stacked_shape", "_shift")
 
-    def __init__(self, ranges: Sequence[tuple[int, int]], shape: tuple[int, int]):
+    def __init__(self, ranges: Sequence[Sequence[int]], shape: tuple[int, int]):
         r = np.asarray(ranges, dtype=np.int64).reshape(-1, 2)
         h, w = int(shape[0]), int(shape[1])
         if not len(r) or (r[:, 0] < 0).any() or (r[:, 1] > h).any() or (r[:, 1] <= r[:, 0]).any() \

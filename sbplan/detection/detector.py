@@ -11,13 +11,14 @@ import collections.abc
 import os
 import time
 from dataclasses import replace
-from typing import Any
+from typing import Any, Unpack
 
 import numpy as np
 
-from ..contracts import array_of, call_stage, describe_value, stage_failure
+from ..contracts import (Binarizer, ContourApproximator, ContourExtractor, DescriptorMatcher, OccupancyMapper,
+                         StageChoices, array_of, call_stage, describe_value, stage_failure)
 from ..errors import CameraMotionError, ContourError, DetectionError, NoFloorError
-from ..imageio import as_gray, load_image
+from ..imageio import ImageInput, as_gray, load_image
 from ..polygons import PolygonBatch, centroids, resample_complex, signed_areas
 from .bands import RowBands
 from .calibration.file import Calibration, load_calibration
@@ -67,8 +68,10 @@ class Detector:
     processes whole frames.
     """
 
-    def __init__(self, calibration: Calibration, *, binarizer: Any = None, extractor: Any = None,
-                 approximator: Any = None, matcher: Any = None, mapper: Any = None, row_bands: bool = True,
+    def __init__(self, calibration: Calibration, *, binarizer: str | Binarizer | None = None,
+                 extractor: str | ContourExtractor | None = None, approximator: str | ContourApproximator | None = None,
+                 matcher: str | DescriptorMatcher | None = None, mapper: str | OccupancyMapper | None = None,
+                 row_bands: bool = True,
                  register: bool = True):
         self.calibration = cal = calibration
         self.binarizer = cal.stage("binarizer", binarizer)
@@ -124,7 +127,8 @@ class Detector:
         # its symbol's edge all around (sbplan.detection.outline_checks.edges_intact): where each reference
         # outline is read, and the step the reference showed there. Old calibrations have none.
         n_cells = len(cal.symbol_polygons)
-        self._edge_x = self._edge_y = self._edge_factors = None
+        self._edge_x: np.ndarray | None = None  # None: no edge check
+        self._edge_y = self._edge_factors = np.zeros((0, EDGE_SAMPLES))
         if cal.edge_contrast is not None and np.shape(cal.edge_contrast) == (n_cells, EDGE_SAMPLES) and n_cells:
             # (outlines traced in a reduced image lie up to a reduced pixel inside the ink's edge:
             # the probes reach as much farther)
@@ -148,8 +152,8 @@ class Detector:
                                          apply(matrix, self._symbol_corners[:, 0])).max() < 1.0:
             return cached[1]
         corners = self.work.to_work(apply(matrix, self._symbol_corners))
-        bands = RowBands.around(list(corners), self.work.work_shape, margin=self._band_margin / self.work.factor)
-        bands = bands if bands.fraction <= BANDS_WORTH_IT else None
+        around = RowBands.around(list(corners), self.work.work_shape, margin=self._band_margin / self.work.factor)
+        bands = around if around.fraction <= BANDS_WORTH_IT else None
         self._bands_cache = (matrix, bands)
         return bands
 
@@ -163,7 +167,7 @@ class Detector:
         ok = band >= 0
         return bool(ok.all() and (hi < bands.stops[band]).all() and (lo >= bands.starts[band]).all())
 
-    def find_cells(self, image: Any) -> CellDetection:
+    def find_cells(self, image: ImageInput) -> CellDetection:
         """Image in -> occupied cells out: the pipeline up to the mapper, for callers that need
         only the cells (and what :meth:`__call__` builds on).
 
@@ -249,8 +253,8 @@ class Detector:
                 xy = work.to_frame(xy)
                 if moved:
                     xy = motion.to_calibration(xy)
-                xy = xy.reshape(len(picked), SAMPLES, 2)
-                deviation, shift = samples_deviation(xy[..., 0], xy[..., 1], self.distance_map)
+                per_outline = xy.reshape(len(picked), SAMPLES, 2)
+                deviation, shift = samples_deviation(per_outline[..., 0], per_outline[..., 1], self.distance_map)
                 # the outline's shift was measured in calibration pixels; the frame's are scaled
                 shift = shift * motion.scale
                 straight = ~(deviation > cal.outline_tolerance_px)
@@ -407,7 +411,7 @@ class Detector:
             hi[:, 1] += dy
         return np.concatenate([lo, hi], axis=1)
 
-    def __call__(self, image: Any) -> Detection:
+    def __call__(self, image: ImageInput) -> Detection:
         """The whole detection: :meth:`find_cells`, then the occupancy image and the obstacles."""
         cal = self.calibration
         cells = self.find_cells(image)
@@ -487,7 +491,8 @@ class _Picked(collections.abc.Sequence):
         return self.batch[int(self.indices[i])]
 
 
-def detect(image: Any, calibration: Calibration | str | os.PathLike, **stages: Any) -> Detection:
+def detect(image: ImageInput, calibration: Calibration | str | os.PathLike,
+           **stages: Unpack[StageChoices]) -> Detection:
     """Detect the occupied cells and obstacles of one image.
 
     Parameters

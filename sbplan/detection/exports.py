@@ -16,7 +16,7 @@ import numpy as np
 from .. import limits
 from ..errors import InputError
 from ..files import write_atomic, write_file_set
-from ..imageio import encode_image, write_image
+from ..imageio import as_gray, encode_image, write_image
 from ..polygons import signed_area
 from .result import Detection
 
@@ -29,8 +29,6 @@ def overlay_image(image: np.ndarray, detection: Detection) -> np.ndarray:
 
     The detection's pixel coordinates are the calibration's; they are drawn where the camera's
     movement (``detection.camera``) puts them in this frame."""
-    from ..imageio import as_gray
-
     gray = as_gray(image)
     out = cv2.cvtColor(gray, cv2.COLOR_GRAY2BGR)
     grid = detection.calibration.grid

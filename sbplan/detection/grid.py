@@ -170,10 +170,10 @@ def fit_grid(centres: np.ndarray, *, tolerance: float = 0.3, max_residual: float
         return np.median(base, axis=0)
 
     u, w = shortest_direction(horiz), shortest_direction(vert)
-    if u is None and w is None:
-        raise CalibrationError("symbol centres form no grid")
-    if u is None:  # a single column
-        u = np.array([w[1], -w[0]])
+    if u is None:
+        if w is None:
+            raise CalibrationError("symbol centres form no grid")
+        u = np.array([w[1], -w[0]])  # a single column
     if w is None:  # a single row
         w = np.array([-u[1], u[0]])
     basis = np.column_stack([u, w])

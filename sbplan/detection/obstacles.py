@@ -83,7 +83,7 @@ def mar_shapely(points: np.ndarray) -> np.ndarray:
     """Minimum-area rectangle by shapely (``minimum_rotated_rectangle``): corners (4, 2)."""
     pts = as_points(points, name="points", min_points=1)
     rect = shapely.minimum_rotated_rectangle(shapely.MultiPoint(pts))
-    coords = np.asarray(rect.exterior.coords)[:-1] if rect.geom_type == "Polygon" else np.asarray(rect.coords)
+    coords = np.asarray(rect.exterior.coords)[:-1] if isinstance(rect, shapely.Polygon) else np.asarray(rect.coords)
     if len(coords) < 4:  # degenerate (a segment): repeat points to keep the (4, 2) shape
         coords = np.resize(coords, (4, 2))
     return coords

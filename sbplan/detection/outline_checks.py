@@ -10,6 +10,7 @@ outline from its cell's reference outline, after removing the common shift, sepa
 from __future__ import annotations
 
 import bisect
+from collections.abc import Sequence
 
 import cv2
 import numpy as np
@@ -172,7 +173,7 @@ def inner_tolerance(deviations: np.ndarray, cells: np.ndarray, n_cells: int) -> 
     return np.where(np.isfinite(tol), tol, fill)
 
 
-def hidden_piece(polygons: list[np.ndarray], shifts: np.ndarray, points: np.ndarray, inward: np.ndarray,
+def hidden_piece(polygons: Sequence[np.ndarray], shifts: np.ndarray, points: np.ndarray, inward: np.ndarray,
                  allowance: np.ndarray, ink: np.ndarray) -> np.ndarray:
     """Which found symbols have lost a piece of their cell's reference outline.
 
@@ -379,7 +380,7 @@ def intact_edges(kept: np.ndarray, *, max_break: int | np.ndarray = 0, probed: n
     runs at most ``gap`` kept points apart (a number or one per outline) are one break.
     Shape (n,), bool.
     """
-    intact = kept.all(axis=1)
+    intact = np.asarray(kept.all(axis=1))  # (n,) bool: the stubs allow a scalar
     limit = np.broadcast_to(np.asarray(max_break), intact.shape)
     gaps = np.broadcast_to(np.asarray(gap), intact.shape)
     if (limit > 0).any() and not intact.all():

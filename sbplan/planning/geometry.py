@@ -6,7 +6,7 @@ All points are world coordinates ``(x, y)`` (metres, or pixels with a scale), y 
 from __future__ import annotations
 
 import math
-from typing import Any, Iterable, Sequence
+from typing import Any, Iterable, Sequence, cast
 
 import numpy as np
 import shapely
@@ -120,7 +120,7 @@ def enlarge(polygons: Sequence[Polygon], distance: float) -> list[Polygon]:
         q = p.buffer(distance, join_style="mitre", mitre_limit=MITRE_LIMIT) if distance > 0 else p
         for g in getattr(q, "geoms", [q]):
             if isinstance(g, Polygon) and not g.is_empty and g.area > 0:
-                out.append(orient(g.simplify(0.0), 1.0))
+                out.append(orient(cast(Polygon, g.simplify(0.0)), 1.0))  # simplify(0) keeps a polygon
     return out
 
 

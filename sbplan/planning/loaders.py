@@ -11,7 +11,7 @@ import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 import shapely
@@ -21,6 +21,9 @@ from shapely.geometry import Polygon, box
 from .. import limits
 from ..errors import ImageError, InputError, MapFormatError
 from ..imageio import as_gray, load_image
+
+if TYPE_CHECKING:
+    from ..detection import Detection
 
 
 @dataclass
@@ -119,7 +122,7 @@ def _poly(coords: Any, where: str) -> Polygon:
     return Polygon(a)
 
 
-def detection_obstacles(detection: Any, *, use: str = "mar", source: str = "") -> ObstacleSet:
+def detection_obstacles(detection: Detection | dict[str, Any], *, use: str = "mar", source: str = "") -> ObstacleSet:
     """The obstacles of a detection result, as the planner takes them: the one place that says
     which polygons of a detection are obstacles (``sbplan demo``, the TUI and
     :func:`load_obstacles` all come here).
@@ -194,7 +197,8 @@ def _from_geojson(data: dict, src: str) -> ObstacleSet:
     polys = [p for k, p in items if k == "mar"] if kinds else [p for _, p in items]
     if kinds and not polys:
         polys = [p for _, p in items]
-    meta = data.get("sbplan") if isinstance(data.get("sbplan"), dict) else {}
+    meta = data.get("sbplan")
+    meta = meta if isinstance(meta, dict) else {}
     return ObstacleSet(polys, _bounds(meta.get("bounds_m"), src), src)
 
 
@@ -298,8 +302,9 @@ def _rotated_map(occupied: np.ndarray, res: float, ox: float, oy: float, yaw: fl
     polys = [shapely.affinity.affine_transform(q, m) for q in occupancy_polygons(occupied, resolution=res,
                                                                                   source="map")]
     extent = shapely.affinity.affine_transform(box(0.0, 0.0, w * res, h * res), m)
-    bounds = tuple(float(v) for v in extent.bounds)
-    outside = box(*bounds).difference(extent)
+    x0, y0, x1, y1 = (float(v) for v in extent.bounds)
+    bounds = (x0, y0, x1, y1)
+    outside = box(x0, y0, x1, y1).difference(extent)
     # Drop the rounding slivers left where the image is (nearly) axis-aligned (yaw near k pi/2).
     tiny = 1e-9 * extent.area
     polys += [q for q in getattr(outside, "geoms", [outside]) if isinstance(q, Polygon) and q.area > tiny]
@@ -326,7 +331,8 @@ def occupancy_polygons(occupied: np.ndarray, *, resolution: float = 1.0,
     if not rects:
         return []
     u = shapely.union_all(rects)
-    return [g.simplify(0.0) for g in getattr(u, "geoms", [u]) if isinstance(g, Polygon) and g.area > 0]
+    # (simplify(0) drops collinear vertices: a polygon stays a polygon)
+    return [cast(Polygon, g.simplify(0.0)) for g in getattr(u, "geoms", [u]) if isinstance(g, Polygon) and g.area > 0]
 
 
 def occupancy_rectangles(occupied: np.ndarray, *, resolution: float = 1.0,

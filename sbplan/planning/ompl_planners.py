@@ -54,7 +54,7 @@ class ExactMotionValidator(ob.MotionValidator):
     """A motion is valid when its segment enters no enlarged obstacle (the same exact test the
     auxiliary-corner search uses) and both ends are inside the bounds."""
 
-    def __init__(self, si: Any, pmap: Any):
+    def __init__(self, si: Any, pmap: PlanningMap):
         super().__init__(si)
         self._pmap = pmap
 
@@ -67,7 +67,7 @@ class AuxCornerOMPLPlanner(ob.Planner):
     ompl.tools.Benchmark). The search is sbplan's VisibilityMap.shortest_path: the same code the
     sbplan API calls."""
 
-    def __init__(self, si: Any, pmap: Any):
+    def __init__(self, si: Any, pmap: PlanningMap):
         super().__init__(si, "AuxCorner")
         self._pmap = pmap
 
@@ -96,7 +96,7 @@ class AuxCornerOMPLPlanner(ob.Planner):
         return ob.PlannerStatus(True, False)
 
 
-def make_setup(pmap: Any) -> Any:
+def make_setup(pmap: PlanningMap) -> Any:
     """A SimpleSetup on the map: R^2 within its bounds, free = outside every enlarged obstacle."""
     space = ob.RealVectorStateSpace(2)
     b = ob.RealVectorBounds(2)
@@ -129,7 +129,7 @@ def set_query(ss: Any, start: np.ndarray, goal: np.ndarray) -> None:
     ss.setOptimizationObjective(ob.PathLengthOptimizationObjective(si))
 
 
-def allocate(name: str, si: Any, pmap: Any) -> Any:
+def allocate(name: str, si: Any, pmap: PlanningMap) -> Any:
     """An OMPL planner instance by sbplan stage name (``aux-corner`` or one of OMPL_PLANNERS)."""
     if name == "aux-corner":
         return AuxCornerOMPLPlanner(si, pmap)

@@ -17,7 +17,7 @@ import shapely
 from shapely.geometry import LineString, Point, Polygon
 
 from .. import registry
-from ..contracts import call_stage, describe_value
+from ..contracts import Planner, call_stage, describe_value
 from ..errors import InputError
 from .geometry import as_point, as_polygons, nonneg
 from .loaders import ObstacleSet
@@ -88,7 +88,7 @@ def _map_for(obstacles: Any, start: np.ndarray, goal: np.ndarray, robot_radius: 
                                              include=(start, goal)))
 
 
-def plan(obstacles: Any, start: Any, goal: Any, *, robot_radius: float | None = None, planner: Any = "aux-corner",
+def plan(obstacles: Any, start: Any, goal: Any, *, robot_radius: float | None = None, planner: str | Planner = "aux-corner",
          bounds: Sequence[float] | None = None, time_limit: float = 1.0, margin: float | None = None) -> Route:
     """Plan a collision-free route for a disc robot among polygonal obstacles.
 
@@ -144,7 +144,7 @@ def route_problem(v: Any) -> str | None:
     return None
 
 
-def replan(route: Route, position: Any, new_obstacles: Any, *, planner: Any = None,
+def replan(route: Route, position: Any, new_obstacles: Any, *, planner: str | Planner | None = None,
            time_limit: float = 1.0) -> Route:
     """Update a route after new obstacles appeared, from the robot's current position.
 
@@ -189,6 +189,8 @@ def replan(route: Route, position: Any, new_obstacles: Any, *, planner: Any = No
     if not touched:
         return Route(remaining, status=route.status, planner=route.planner, time=time.perf_counter() - t0,
                      replanned=False, map=pm, goal=route.goal)
+    if route.goal is None:  # only an empty route has none, and an empty route touches nothing
+        raise InputError("route: has no goal to replan to")
     out = call_stage(stage, "solve", Problem(pm, p, route.goal), time_limit=tl, returns=route_problem)
     out.time = time.perf_counter() - t0
     return out

@@ -11,13 +11,16 @@ import copy
 import heapq
 import math
 import threading
-from typing import Sequence
+from typing import Literal, Sequence
 
 import numpy as np
 import shapely
 from shapely.geometry import Polygon
 
 from ..errors import NoRouteError
+
+#: a point (x, y): a pair of numbers or an array of shape (2,)
+XY = Sequence[float] | np.ndarray
 
 _UNKNOWN, _FREE, _BLOCKED = 0, 1, 2
 #: Above this many segment x edge pairs a fan of segments is pre-filtered by angle (_fan_pairs);
@@ -76,7 +79,7 @@ class VisibilityMap:
         self._cactive = np.zeros(0, bool)
         self._vis = np.zeros((0, 0), np.int8)
         self._pcount = np.zeros(0, np.int64)
-        self._tree = None
+        self._tree: shapely.STRtree  # set by add_obstacles below
         self.stats = {"segment_pairs": 0, "expansions": 0}
         self._prepare()
         self.add_obstacles(polygons, _initial=True)
@@ -115,7 +118,7 @@ class VisibilityMap:
             return out
         geoms = shapely.points(pts)
         # STRtree evaluates predicate(point, polygon): "within" is the strict interior.
-        pred = "intersects" if boundary else "within"
+        pred: Literal["intersects", "within"] = "intersects" if boundary else "within"
         ip, io = self._tree.query(geoms, predicate=pred)
         out[ip] = True
         return out
@@ -240,19 +243,19 @@ class VisibilityMap:
     # Proper crossing: o1, o2 beyond +-eps|D| with opposite signs and o3, o4 beyond +-eps|e| with
     # opposite signs. Vertex a on the segment: |o1| <= eps|D| and A.D strictly between the ends.
 
-    def segment_free(self, p: Sequence[float], q: Sequence[float]) -> bool:
+    def segment_free(self, p: XY, q: XY) -> bool:
         """True when the segment p-q enters no enlarged obstacle (touching is allowed)."""
         if self._scan_polys is not None:
             return not self._scan(float(p[0]), float(p[1]), float(q[0]), float(q[1]), False)
         return not self._segment(float(p[0]), float(p[1]), float(q[0]), float(q[1]))[0]
 
-    def straight_free(self, p: Sequence[float], q: Sequence[float]) -> bool:
+    def straight_free(self, p: XY, q: XY) -> bool:
         """True when p and q are certainly not inside any enlarged obstacle (outside, or on a
         boundary) and the segment p-q enters none: then p-q is the shortest route (see
         straight_check)."""
         return self.straight_check(p, q) == 1
 
-    def straight_check(self, p: Sequence[float], q: Sequence[float]) -> int:
+    def straight_check(self, p: XY, q: XY) -> int:
         """The ends and the segment p-q at once: 1 when both ends are certainly not inside any
         enlarged obstacle (outside, or on a boundary) and the segment enters none -- then p-q is
         the shortest route, and the full checks (shapely point queries) and the search would say
@@ -318,7 +321,7 @@ class VisibilityMap:
         # that crosses the segment and no vertex on it.
         m = 2 * tol_s
         dxp, dyp = dx > 0, dy > 0
-        for x0, y0, x1, y1, chunks in self._scan_polys:
+        for x0, y0, x1, y1, chunks in self._scan_polys or ():  # (called only when there are tables)
             hs = seg and x0 <= sx1 and x1 >= sx0 and y0 <= sy1 and y1 >= sy0
             if hs:
                 if dxp:
@@ -560,7 +563,7 @@ class VisibilityMap:
         return out
 
     # -- search -----------------------------------------------------------------------------------
-    def shortest_path(self, start: Sequence[float], goal: Sequence[float], *, should_stop=None,
+    def shortest_path(self, start: XY, goal: XY, *, should_stop=None,
                       straight_blocked: bool = False) -> tuple[np.ndarray, float]:
         """Euclidean-shortest route from start to goal, shape (M, 2) ``(x, y)``, and its length.
 

@@ -13,7 +13,7 @@ import contextlib
 import hmac
 import logging
 import time
-from typing import Any
+from typing import Any, Sequence
 
 import cv2
 from fastapi import FastAPI, Path, Query, Request, WebSocket
@@ -95,6 +95,7 @@ def create_app(service: Service, *, token: str | None = None, source: FrameSourc
         """The current detection: cells, obstacles (outlines and MARs in pixels and metres), the
         camera's movement, frame number and age."""
         snap = service.snapshot()
+        assert snap.model is not None  # a published snapshot has its model
         return snap.model.model_copy(update={"age_s": time.time() - snap.received})
 
     @app.get("/obstacles.geojson", response_model=models.FeatureCollection, response_class=GeoJSONResponse,
@@ -133,6 +134,7 @@ def create_app(service: Service, *, token: str | None = None, source: FrameSourc
         state; routes its new obstacles block are replanned and pushed."""
         data = await _image_body(request, service)
         snap, replanned = await service.detect(data)
+        assert snap.model is not None  # a published snapshot has its model
         fields = {k: v for k, v in snap.model if k != "age_s"}
         return models.Detected.model_construct(**fields, routes_replanned=replanned)
 
@@ -266,7 +268,7 @@ def _document_auth(app: FastAPI) -> None:
     """Say in the OpenAPI document that everything but /health takes a bearer token."""
     original = app.openapi
 
-    def openapi() -> dict:
+    def openapi() -> dict[str, Any]:
         if app.openapi_schema is None:
             schema = original()
             # models of the bodies handlers parse themselves (_json_body)
@@ -281,9 +283,10 @@ def _document_auth(app: FastAPI) -> None:
                 if path != "/health":
                     for op in ops.values():
                         op["security"] = [{"bearer": []}]
+        assert app.openapi_schema is not None  # FastAPI's openapi() keeps what it made
         return app.openapi_schema
 
-    app.openapi = openapi
+    app.openapi = openapi  # type: ignore[method-assign]  # FastAPI's documented way to extend the schema
 
 
 # -- guard ----------------------------------------------------------------------------------------
@@ -334,6 +337,7 @@ class Guard:
         if value is None:
             return "this service needs a bearer token: send the header 'Authorization: Bearer TOKEN'"
         scheme, _, given = value.partition(" ")
+        assert self.token is not None  # asked only when the service has a token
         if scheme.lower() != "bearer" or not hmac.compare_digest(given.strip().encode(), self.token.encode()):
             return "wrong bearer token"
         return None
@@ -362,7 +366,8 @@ def _header(scope: dict, name: bytes) -> str | None:
     return None
 
 
-async def _send_json(send: Any, status: int, error: models.Error, headers: list = ()) -> None:
+async def _send_json(send: Any, status: int, error: models.Error,
+                     headers: Sequence[tuple[bytes, bytes]] = ()) -> None:
     body = error.model_dump_json(exclude_none=True).encode()
     await send({"type": "http.response.start", "status": status,
                 "headers": [(b"content-type", b"application/json"), (b"content-length", str(len(body)).encode()),

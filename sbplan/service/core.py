@@ -158,7 +158,8 @@ class Service:
         if not self._listeners:
             return
         event = model(seq=self._seq, **fields)
-        out = OutEvent(self._seq, event.type, event.model_dump_json(), owner)
+        kind = getattr(event, "type")  # every event model has its `type` tag (models.Event)
+        out = OutEvent(self._seq, kind, event.model_dump_json(), owner)
         for listener in list(self._listeners):
             listener(out)
 
@@ -242,7 +243,7 @@ class Service:
         info = dict(frame=frame, received=staged["received"], source=staged["source"], name=staged["name"])
         snap = Snapshot(frame=frame, model=models.State.model_construct(**dict(checked), **info, age_s=0.0), **staged)
         changed: list[RouteRecord] = []
-        routes = old.routes.copy()
+        routes = dict(old.routes)
         if old.snapshot is None or snap.keys != old.snapshot.keys:
             for rid, rec in old.routes.items():
                 new = self._check_route(rec, snap)
@@ -326,9 +327,9 @@ class Service:
         model = route_model(rid=rid, owner=req.owner, version=1, frame=snap.frame, reason="created", route=route,
                             start=req.start, goal=req.goal, position=req.start, robot_radius=radius,
                             margin=req.margin, extras=0, planner=self.planner)
-        rec = RouteRecord(model=model, route=route, goal=tuple(req.goal), position=tuple(req.start),
+        rec = RouteRecord(model=model, route=route, goal=(req.goal[0], req.goal[1]), position=(req.start[0], req.start[1]),
                           robot_radius=radius, margin=float(req.margin), extras=(), planned_on=snap.keys)
-        routes = old.routes.copy()
+        routes = dict(old.routes)
         routes[rid] = rec
         while len(routes) > self.max_routes:
             del routes[next(iter(routes))]
@@ -342,7 +343,8 @@ class Service:
         extras = rec.extras
         if req.obstacle is not None:
             extras = extras + (_polygon(req.obstacle),)
-        new = self._replanned(rec, self.snapshot(), tuple(req.position), extras, reason="replan", raise_errors=True)
+        new = self._replanned(rec, self.snapshot(), (req.position[0], req.position[1]), extras, reason="replan",
+                              raise_errors=True)
         self._put(new)
         self._emit(models.RouteEvent, new.owner, dict(route=new.model))
         return new.model
@@ -369,7 +371,7 @@ class Service:
 
     def _put(self, rec: RouteRecord) -> None:
         old = self._state
-        routes = old.routes.copy()
+        routes = dict(old.routes)
         routes.pop(rec.id, None)
         routes[rec.id] = rec
         self._state = old.with_routes(routes)
@@ -378,7 +380,7 @@ class Service:
         self._check_thread()
         rec = self.route(rid)
         old = self._state
-        routes = old.routes.copy()
+        routes = dict(old.routes)
         del routes[rid]
         self._state = old.with_routes(routes)
         self._emit(models.RouteDeletedEvent, rec.owner, dict(id=rid, owner=rec.owner))
@@ -387,7 +389,7 @@ class Service:
         self._check_thread()
         rec = self.route(rid)
         old = self._state
-        routes = old.routes.copy()
+        routes = dict(old.routes)
         routes[rid] = rec.evolve(position=tuple(position))
         self._state = old.with_routes(routes)
 

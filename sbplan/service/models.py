@@ -32,7 +32,7 @@ class Error(BaseModel):
 
     code: str = Field(description="short stable tag: no-frame, start-in-obstacle, not-an-image, too-large, ...")
     message: str = Field(description="one readable line")
-    errors: list[dict] | None = Field(None, description="invalid-request only: each field's problem")
+    errors: list[dict] | None = Field(default=None, description="invalid-request only: each field's problem")
 
 
 class Health(BaseModel):
@@ -166,9 +166,9 @@ class FeatureCollection(BaseModel):
 class RouteRequest(_Strict):
     start: XY = Field(description="[x, y] metres")
     goal: XY = Field(description="[x, y] metres")
-    robot_radius: NonNegative | None = Field(None, description="metres; default: the calibration's workspace radius")
+    robot_radius: NonNegative | None = Field(default=None, description="metres; default: the calibration's workspace radius")
     margin: NonNegative = Field(0.0, description="extra safety distance, metres")
-    owner: Owner | None = Field(None, description="who to push this route's updates to (WS /events?owner=...)")
+    owner: Owner | None = Field(default=None, description="who to push this route's updates to (WS /events?owner=...)")
 
 
 class ReplanRequest(_Strict):

@@ -53,7 +53,7 @@ def address(sock: socket.socket) -> tuple[str, int]:
 
 def make_server(app: Any, *, log_level: str = "warning", access_log: bool = False) -> Any:
     """A uvicorn server for ``app`` (uvloop and httptools when installed)."""
-    import uvicorn
+    import uvicorn  # the serve extra: the address helpers above work without it
 
     config = uvicorn.Config(app, log_level=log_level, access_log=access_log, lifespan="on",
                             ws_max_size=WS_MAX_MESSAGE, server_header=False, proxy_headers=False,

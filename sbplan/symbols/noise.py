@@ -30,6 +30,7 @@ from typing import Sequence
 import numpy as np
 from shapely import affinity
 from shapely.geometry import MultiPolygon, Point, Polygon, box
+from shapely.geometry.base import BaseGeometry
 from shapely.geometry.polygon import orient
 
 from ..errors import InputError
@@ -53,20 +54,22 @@ def parse_families(spec: str | Sequence[str] | None) -> tuple[str, ...]:
     return tuple(dict.fromkeys(items))
 
 
-def _rings(poly: Polygon) -> list[np.ndarray] | None:
-    """The polygon's rings in the unit box (longer side 1, centred), or None when degenerate."""
-    if isinstance(poly, MultiPolygon):
-        poly = max(poly.geoms, key=lambda g: g.area)
-    if not isinstance(poly, Polygon) or poly.is_empty or poly.area <= 0:
+def _rings(shape: BaseGeometry) -> list[np.ndarray] | None:
+    """The rings of the polygon (of a multipolygon's largest part) in the unit box (longer side 1,
+    centred), or None when degenerate or not a polygon."""
+    if isinstance(shape, MultiPolygon):
+        shape = max(shape.geoms, key=lambda g: g.area)
+    if not isinstance(shape, Polygon) or shape.is_empty or shape.area <= 0:
         return None
-    poly = poly.simplify(0.0)
+    poly = shape.simplify(0.0)
     x0, y0, x1, y1 = poly.bounds
     side = max(x1 - x0, y1 - y0)
     if side <= 0 or poly.area < 0.002 * side * side:
         return None
-    poly = affinity.affine_transform(poly, [1 / side, 0, 0, 1 / side, -x0 / side, -y0 / side])
-    poly = orient(poly, sign=-1.0)
-    return [np.asarray(r.coords, np.float64)[:-1] for r in (poly.exterior, *poly.interiors)]
+    moved = affinity.affine_transform(poly, [1 / side, 0, 0, 1 / side, -x0 / side, -y0 / side])
+    assert isinstance(moved, Polygon)  # simplifying and scaling keep a polygon a polygon
+    oriented = orient(moved, sign=-1.0)
+    return [np.asarray(r.coords, np.float64)[:-1] for r in (oriented.exterior, *oriented.interiors)]
 
 
 def _blob(rng: np.random.Generator) -> Polygon:
@@ -111,7 +114,7 @@ def _occluded(rings: Sequence[np.ndarray], rng: np.random.Generator) -> Polygon 
     return None
 
 
-def _edge_fragment(rng: np.random.Generator) -> Polygon:
+def _edge_fragment(rng: np.random.Generator) -> BaseGeometry:
     kind = rng.integers(3)
     aspect = rng.uniform(1.0, 3.0)
     rect = box(0, 0, aspect, 1)
@@ -170,6 +173,7 @@ def noise_set(symbol_rings: Sequence[np.ndarray] | None = None, *, families: str
         # One stream per family so that dropping a family does not change the others' shapes.
         rng = np.random.default_rng(np.random.SeedSequence([int(seed), 0x7015E, fi]))
         for i in range(per_family):
+            poly: BaseGeometry | None
             if fam == "blobs":
                 poly = _blob(rng)
             elif fam == "circles":

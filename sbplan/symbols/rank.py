@@ -49,6 +49,7 @@ import cv2
 import numpy as np
 
 from .. import registry
+from ..contracts import Binarizer, ContourApproximator, ContourExtractor, DescriptorMatcher
 from ..errors import InputError
 from .noise import NOISE_FAMILIES, noise_set, parse_families
 from .raster import coverage, place, symbol_rings
@@ -68,7 +69,7 @@ _PAPER, _INK = 185.0, 45.0
 
 
 # -- equations (2)-(4) ---------------------------------------------------------------------------
-def distance_matrix(descriptors: np.ndarray, matcher: Any = None) -> np.ndarray:
+def distance_matrix(descriptors: np.ndarray, matcher: str | DescriptorMatcher | None = None) -> np.ndarray:
     """Equation (2): all pairwise distances between the rows of ``descriptors`` (M, K).
 
     With ``matcher`` None the Euclidean distance of the paper; otherwise the matcher's own
@@ -161,7 +162,7 @@ def render_view(rings: Sequence[np.ndarray], *, size: float, angle: float = 0.0,
     placed = [r - lo for r in placed]
     w, h = (hi - lo + 1).astype(int)
     alpha = coverage(placed, (h, w), supersample=8)
-    img = _PAPER - (_PAPER - _INK) * alpha
+    img: np.ndarray = _PAPER - (_PAPER - _INK) * alpha
     if blur > 0:
         img = cv2.GaussianBlur(img, (0, 0), float(blur))
     if noise > 0:
@@ -169,7 +170,8 @@ def render_view(rings: Sequence[np.ndarray], *, size: float, angle: float = 0.0,
     return np.clip(np.rint(img), 0, 255).astype(np.uint8)
 
 
-def outline_of(gray: np.ndarray, *, binarizer: Any, extractor: Any, approximator: Any) -> np.ndarray | None:
+def outline_of(gray: np.ndarray, *, binarizer: Binarizer, extractor: ContourExtractor,
+               approximator: ContourApproximator) -> np.ndarray | None:
     """The approximated polygon ``(M, 2)`` ``(x, y)`` of the largest outer contour of an image of
     one shape, or None when the stages find no polygon."""
     binary = binarizer.binarize(gray)
@@ -186,7 +188,8 @@ def outline_of(gray: np.ndarray, *, binarizer: Any, extractor: Any, approximator
     return poly if len(poly) >= 3 else None
 
 
-def _stages(binarizer: Any, extractor: Any, approximator: Any, matcher: Any) -> dict[str, Any]:
+def _stages(binarizer: str | Binarizer, extractor: str | ContourExtractor, approximator: str | ContourApproximator,
+            matcher: str | DescriptorMatcher) -> dict[str, Any]:
     reg = registry.registry()
     return {kind: reg.create(kind, given) for kind, given in
             (("binarizer", binarizer), ("extractor", extractor), ("approximator", approximator),
@@ -195,8 +198,9 @@ def _stages(binarizer: Any, extractor: Any, approximator: Any, matcher: Any) -> 
 
 def describe_views(rings: Sequence[np.ndarray], *, sizes: Sequence[float] = DEFAULT_SIZES,
                    angles: Sequence[float] = DEFAULT_ANGLES, blurs: Sequence[float] = DEFAULT_BLURS,
-                   binarizer: Any = "otsu", extractor: Any = "opencv", approximator: Any = "douglas-peucker",
-                   matcher: Any = "fourier") -> np.ndarray:
+                   binarizer: str | Binarizer = "otsu", extractor: str | ContourExtractor = "opencv",
+                   approximator: str | ContourApproximator = "douglas-peucker",
+                   matcher: str | DescriptorMatcher = "fourier") -> np.ndarray:
     """Descriptors of one shape seen at every combination of size, rotation and blur.
 
     Returns an array of shape (V, K), one row per rendering in which the stages found the shape
@@ -354,8 +358,9 @@ def _check_seq(name: str, values: Sequence[float], *, low: float, low_open: bool
     return vals
 
 
-def rank_symbols(candidates: Sequence[str] | Mapping[str, Any] | None = None, *, matcher: Any = "fourier",
-                 binarizer: Any = "otsu", extractor: Any = "opencv", approximator: Any = "douglas-peucker",
+def rank_symbols(candidates: Sequence[str] | Mapping[str, Any] | None = None, *,
+                 matcher: str | DescriptorMatcher = "fourier", binarizer: str | Binarizer = "otsu",
+                 extractor: str | ContourExtractor = "opencv", approximator: str | ContourApproximator = "douglas-peucker",
                  sizes: Sequence[float] = DEFAULT_SIZES, angles: Sequence[float] = DEFAULT_ANGLES,
                  blurs: Sequence[float] = DEFAULT_BLURS, noise_families: str | Sequence[str] | None = None,
                  noise_per_family: int = 12, min_regularity: float = 0.5, min_margin: float = 2.0,
@@ -458,15 +463,13 @@ def rank_symbols(candidates: Sequence[str] | Mapping[str, Any] | None = None, *,
         regular.append(regularity(rings))
         if progress is not None:
             progress(k + 1, total, name)
-    descriptors = np.stack(descriptors)
-    dist = distance_matrix(descriptors, st["matcher"])
+    descriptor_rows = np.stack(descriptors)
+    dist = distance_matrix(descriptor_rows, st["matcher"])
     mean, var = distance_statistics(dist)
     score, order = rank_order(dist)
-    spread = np.asarray(spread)
-    noise_d = np.asarray(noise_d)
-    margin = noise_d / np.maximum(spread, 1e-9)
-    regular = np.asarray(regular)
-    ok = (regular >= min_regularity) & (margin >= min_margin)
+    spread_a, noise_a, regular_a = np.asarray(spread), np.asarray(noise_d), np.asarray(regular)
+    margin = noise_a / np.maximum(spread_a, 1e-9)
+    ok = (regular_a >= min_regularity) & (margin >= min_margin)
     best = next((names[i] for i in order if ok[i]), None)
     settings = {
         "stages": {k: {"name": s.name, "options": s.config()} for k, s in st.items()},
@@ -477,5 +480,5 @@ def rank_symbols(candidates: Sequence[str] | Mapping[str, Any] | None = None, *,
         "spread": "max distance of a rendering from the candidate's median descriptor",
         "regularity": "share of outline length in Douglas-Peucker edges (1.2 px) >= 15% of the size, at 600 px",
     }
-    return Ranking(names, descriptors, dist, mean, var, score, order, regular, spread, noise_d, nearest, margin,
+    return Ranking(names, descriptor_rows, dist, mean, var, score, order, regular_a, spread_a, noise_a, nearest, margin,
                    best, settings, time.perf_counter() - t0)

@@ -49,7 +49,7 @@ def coverage(rings_px: Sequence[np.ndarray], shape: tuple[int, int], *, supersam
     if h < 1 or w < 1:
         raise InputError(f"shape: expected a positive (H, W), got {shape!r}")
     s = int(supersample)
-    canvas = np.zeros((h * s, w * s), np.uint8)
+    canvas: np.ndarray = np.zeros((h * s, w * s), np.uint8)
     # Pixel centre (x, y) covers [x - 0.5, x + 0.5); on the fine canvas that is s*x + (s - 1)/2.
     pts = [np.rint(((np.asarray(r) + 0.5) * s - 0.5) * (1 << _SHIFT)).astype(np.int32).reshape(-1, 1, 2)
            for r in rings_px]

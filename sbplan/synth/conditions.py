@@ -63,6 +63,11 @@ class Effects:
         Floor wear after calibration, 0..1: thin scratches of floor colour across symbols (1 to 3 px
         wide), dark dirt specks (1 to 3 px) and dark tyre marks on the floor between symbols.
         Cells stay free: wear is not an obstacle.
+    shade : (float, float, polygon) or None
+        A shadow cast by something outside the obstacles (a person walking past a lamp):
+        ``(darkness, blur_px, outline)`` darkens the floor inside ``outline`` (``(K, 2)`` floor
+        pixels ``(x, y)``) by ``darkness`` (0..0.8), with edges blurred by a Gaussian of sigma
+        ``blur_px``. Cells stay free: a shadow is not an obstacle.
     """
 
     gain: float = 1.0
@@ -81,6 +86,7 @@ class Effects:
     vibration: float = 0.0
     drift: float = 0.0
     wear: float = 0.0
+    shade: Any = None
 
     def __post_init__(self) -> None:
         checks = {
@@ -112,6 +118,17 @@ class Effects:
                 raise SceneError(f"effects.motion: at most 200 px, 10 degrees and a scale in [0.8, 1.25], "
                                  f"got {self.motion!r}")
             object.__setattr__(self, "motion", (dx, dy, rot, scale))
+        if self.shade is not None:
+            try:
+                darkness, blur, outline = self.shade
+                darkness, blur = float(darkness), float(blur)
+                outline = tuple((float(x), float(y)) for x, y in outline)
+            except (TypeError, ValueError):
+                raise SceneError(f"effects.shade: expected (darkness, blur_px, outline), got {self.shade!r}") from None
+            if not (0.0 <= darkness <= 0.8 and 0.0 <= blur <= 100.0 and len(outline) >= 3):
+                raise SceneError(f"effects.shade: darkness in [0, 0.8], blur_px in [0, 100] and an outline of "
+                                 f"at least 3 points, got {self.shade!r}")
+            object.__setattr__(self, "shade", (darkness, blur, outline))
 
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
@@ -119,11 +136,13 @@ class Effects:
             d["tilt"] = list(d["tilt"])
         # camera movement and wear came later: left out at their defaults, so that the ground
         # truth of scenes without them reads as it always did
-        for key, default in (("motion", None), ("vibration", 0.0), ("drift", 0.0), ("wear", 0.0)):
+        for key, default in (("motion", None), ("vibration", 0.0), ("drift", 0.0), ("wear", 0.0), ("shade", None)):
             if d[key] == default:
                 del d[key]
             elif key == "motion":
                 d[key] = list(d[key])
+            elif key == "shade":
+                d[key] = {"darkness": d[key][0], "blur_px": d[key][1], "outline": [list(p) for p in d[key][2]]}
         return d
 
 

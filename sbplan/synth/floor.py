@@ -12,10 +12,14 @@ from dataclasses import dataclass, field
 from typing import Any, Sequence
 
 import numpy as np
+from shapely.geometry import Polygon
+from shapely.validation import explain_validity
 
+from .. import registry
 from ..contours import as_points
 from ..errors import ContourError, SceneError
 from ..polygons import signed_area
+from .conditions import CONDITIONS, Effects, condition_effects
 
 #: The default floor symbol: asymmetric (no rotational or mirror symmetry), straight pieces, no holes,
 #: thick enough (stroke 0.3 of its size) to survive blur at ~40 px. Like the paper's figure 1.
@@ -50,8 +54,6 @@ def symbol_outline(symbol: str | Any) -> list[np.ndarray]:
         Unknown name, or a polygon that is degenerate or not a valid simple polygon.
     """
     if isinstance(symbol, str):
-        from .. import registry
-
         symbols = registry.registry().symbols()
         if symbol not in symbols:
             raise SceneError(f"symbol: unknown symbol {symbol!r}; registered: {', '.join(symbols) or 'none'}")
@@ -68,12 +70,9 @@ def symbol_outline(symbol: str | Any) -> list[np.ndarray]:
         arrs = [as_points(r, name=f"symbol ring {i}") for i, r in enumerate(rings)]
     except ContourError as exc:
         raise SceneError(str(exc)) from None
-    from shapely.geometry import Polygon
 
     poly = Polygon(arrs[0], arrs[1:])
     if not poly.is_valid or poly.area <= 0:
-        from shapely.validation import explain_validity
-
         raise SceneError(f"symbol: not a valid simple polygon ({explain_validity(poly)})")
     out = []
     for i, a in enumerate(arrs):
@@ -366,8 +365,6 @@ class SceneSpec:
     min_gap: float = 10.0
 
     def __post_init__(self) -> None:
-        from .conditions import CONDITIONS, Effects
-
         s = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
         s("n_obstacles", _num("n_obstacles", self.n_obstacles, low=0, high=500, integer=True))
         kinds = (self.kinds,) if isinstance(self.kinds, str) else tuple(self.kinds)
@@ -406,8 +403,6 @@ class SceneSpec:
 
     def resolved_effects(self):
         """The condition's :class:`Effects` with this scene's overrides applied."""
-        from .conditions import condition_effects
-
         return dataclasses.replace(condition_effects(self.condition), **dict(self.effects))
 
     def to_dict(self) -> dict[str, Any]:

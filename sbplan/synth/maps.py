@@ -18,9 +18,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
+import cv2
 import numpy as np
+import shapely
+from shapely.geometry import LineString, Point, Polygon, box
 
 from ..errors import SceneError
+from ..imageio import write_atomic, write_image
 from .floor import FloorSpec, SceneSpec
 from .render import render_reference, render_scene
 from .truth import FREE, OCCUPIED, GroundTruth
@@ -190,9 +194,6 @@ def _lattice(centres: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 def route_clearance(floor: FloorSpec, truth: GroundTruth, point_m, pitch_m) -> float:
     """Distance in metres from a world point to the nearest true obstacle (floor plane)."""
-    import shapely
-    from shapely.geometry import Point, Polygon
-
     polys = [Polygon(floor_to_world(floor, p, pitch_m)) for p in truth.obstacles_floor]
     if not polys:
         return math.inf
@@ -201,9 +202,6 @@ def route_clearance(floor: FloorSpec, truth: GroundTruth, point_m, pitch_m) -> f
 
 def route_blocked(floor: FloorSpec, truth: GroundTruth, start_m, goal_m, pitch_m) -> bool:
     """True when the straight segment start-goal crosses a true obstacle."""
-    import shapely
-    from shapely.geometry import LineString, Polygon
-
     polys = [Polygon(floor_to_world(floor, p, pitch_m)) for p in truth.obstacles_floor]
     return bool(polys) and shapely.union_all(polys).intersects(LineString([start_m, goal_m]))
 
@@ -223,10 +221,6 @@ def choose_route(floor: FloorSpec, truth: GroundTruth, pitch_m, radius_m) -> tup
     SceneError
         No such pair exists.
     """
-    import cv2
-    import shapely
-    from shapely.geometry import Point, box
-
     rows, cols = truth.cells.shape
     px, py = pitch_m
     ox, oy = px / 2, py / 2
@@ -309,8 +303,6 @@ def build_map(name: str, out: str | os.PathLike | None = None) -> Path:
     Path
         The folder written.
     """
-    from ..imageio import write_atomic, write_image
-
     rec = recipe(name)
     folder = Path(out) if out is not None else Path("maps") / name
     for fname, item in render_map(rec).items():

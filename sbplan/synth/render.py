@@ -8,6 +8,7 @@ it, adds signal-dependent noise, quantizes to 8 bits and optionally JPEG-compres
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 from typing import Callable
@@ -117,13 +118,25 @@ def _expose(refl: np.ndarray, effects: Effects, floor: FloorSpec, cam: Camera, r
     if effects.shadows and obstacle_alpha is not None:
         length = 0.14 * pitch
         dx, dy = length * math.cos(light_angle), length * math.sin(light_angle)
-        shifted = cv2.warpAffine(obstacle_alpha, np.float32([[1, 0, dx], [0, 1, dy]]), (w, h))
+        shifted = cv2.warpAffine(obstacle_alpha, np.array([[1, 0, dx], [0, 1, dy]], np.float32), (w, h))
         sigma = 0.07 * pitch
         shadow = cv2.GaussianBlur(np.maximum(shifted, obstacle_alpha), (0, 0), sigma)
         shade = 1.0 - effects.shadows * shadow * (1.0 - obstacle_alpha)
         illum = shade if illum is None else illum * shade
         draws["shadow_offset_px"] = [dx, dy]
         draws["shadow_blur_px"] = sigma
+    if effects.shade is not None:
+        darkness, blur, ring = effects.shade
+        ring = np.asarray(ring)
+        win = window(ring, w, h, pad=int(math.ceil(3 * blur)) + 2)
+        if win is not None and darkness > 0:
+            x0, y0, ww, hh = win
+            mask = np.zeros((h, w), np.float32)
+            mask[y0:y0 + hh, x0:x0 + ww] = coverage([[ring]], x0, y0, ww, hh)
+            if blur > 0:
+                mask = cv2.GaussianBlur(mask, (0, 0), blur)
+            shade = 1.0 - darkness * mask
+            illum = shade if illum is None else illum * shade
     img = refl * illum if illum is not None else refl.copy()
     if effects.gain != 1.0:
         img *= effects.gain
@@ -180,8 +193,6 @@ def render_reference(floor: FloorSpec, *, seed: int = 0, condition: str = "clean
     cond = condition_effects(condition)
     base = Effects(tilt=cond.tilt, distortion=cond.distortion)
     if effects:
-        import dataclasses
-
         try:
             base = dataclasses.replace(base, **effects)
         except TypeError as exc:
@@ -192,7 +203,8 @@ def render_reference(floor: FloorSpec, *, seed: int = 0, condition: str = "clean
     return img
 
 
-def render_scene(floor: FloorSpec, scene: SceneSpec | None = None, *, seed: int = 1) -> tuple[np.ndarray, GroundTruth]:
+def render_scene(floor: FloorSpec, scene: SceneSpec | None = None, *, seed: int = 1, noise_seed: int | None = None,
+                 texture_seeds: list[int] | None = None) -> tuple[np.ndarray, GroundTruth]:
     """A floor with obstacles under the scene's condition, and its ground truth.
 
     Parameters
@@ -203,6 +215,12 @@ def render_scene(floor: FloorSpec, scene: SceneSpec | None = None, *, seed: int 
     seed : int
         Seeds obstacles, textures, lighting draws and sensor noise (independent streams: the same
         seed under another condition gives the same obstacles).
+    noise_seed : int, optional
+        Seeds the sensor noise instead of ``seed``: frames of a stream keep the seed (the same
+        lighting) and draw new noise.
+    texture_seeds : list of int, optional
+        One per obstacle of ``scene.obstacles``: each obstacle's texture drawn from its own seed,
+        so that it looks the same whatever else stands on the floor (frames of a stream).
 
     Returns
     -------
@@ -214,20 +232,26 @@ def render_scene(floor: FloorSpec, scene: SceneSpec | None = None, *, seed: int 
     scene = SceneSpec() if scene is None else scene
     if not isinstance(scene, SceneSpec):
         raise SceneError(f"scene: expected a SceneSpec, got {type(scene).__name__}")
+    if texture_seeds is not None and (scene.obstacles is None or len(texture_seeds) != len(scene.obstacles)):
+        raise SceneError("texture_seeds: give one per obstacle of scene.obstacles")
     effects = scene.resolved_effects()
     cam = _camera(floor, effects)
     # spawned streams do not depend on how many are spawned: the first four are what they were
     # before motion and wear had streams of their own
     r_obs, r_tex, r_light, r_noise, r_motion, r_wear = _rngs(seed, 6)
+    if noise_seed is not None:
+        r_noise = _rngs(noise_seed, 1, 0x015E)[0]
     polys, kinds = _place_obstacles(floor, scene, r_obs)
     refl0, footprints = _floor(floor)
     refl = refl0.copy()
     if effects.wear:
         _wear(refl, floor, effects.wear, r_wear)
     motion = _motion(floor, effects, seed, r_motion)
-    union_alpha = np.zeros_like(refl) if polys else None
+    alpha_sum = np.zeros_like(refl)  # the obstacles' coverage, added up
     textures = []
-    for poly, kind in zip(polys, kinds):
+    for i, (poly, kind) in enumerate(zip(polys, kinds)):
+        if texture_seeds is not None:
+            r_tex = _rngs(int(texture_seeds[i]), 1, 0x7E7)[0]
         name = scene.textures[int(r_tex.integers(len(scene.textures)))]
         textures.append(name)
         win = window(poly, floor.width, floor.height)
@@ -240,7 +264,8 @@ def render_scene(floor: FloorSpec, scene: SceneSpec | None = None, *, seed: int 
         tex = texture(kind, name, (h, w), centre, size, r_tex, contrast=effects.texture_contrast)
         sub = refl[y0:y0 + h, x0:x0 + w]
         sub += (tex - sub) * a
-        np.maximum(union_alpha[y0:y0 + h, x0:x0 + w], a, out=union_alpha[y0:y0 + h, x0:x0 + w])
+        np.maximum(alpha_sum[y0:y0 + h, x0:x0 + w], a, out=alpha_sum[y0:y0 + h, x0:x0 + w])
+    union_alpha = alpha_sum if polys else None
     img, draws = _expose(refl, effects, floor, cam, r_light, r_noise, union_alpha,
                          None if motion is None else motion_matrix(floor.width, floor.height, motion))
     truth = _truth(floor, scene, effects, cam, footprints, polys, kinds, textures, seed, draws, motion)
@@ -328,18 +353,21 @@ def _wear(refl: np.ndarray, floor: FloorSpec, amount: float, rng: np.random.Gene
         refl *= 1.0 - rng.uniform(0.2, 0.45) * alpha
 
 
-def _place_obstacles(floor: FloorSpec, scene: SceneSpec, rng: np.random.Generator):
+def _place_obstacles(floor: FloorSpec, scene: SceneSpec,
+                     rng: np.random.Generator) -> tuple[list[np.ndarray], list[str]]:
     if scene.obstacles is not None:
-        polys = [np.asarray(o, dtype=np.float64) for o in scene.obstacles]
-        for i, p in enumerate(polys):
+        given = [np.asarray(o, dtype=np.float64) for o in scene.obstacles]
+        for i, p in enumerate(given):
             if not Polygon(p).is_valid:
                 raise SceneError(f"obstacles[{i}]: not a valid simple polygon")
-        return polys, ["polygon"] * len(polys)
+        return given, ["polygon"] * len(given)
     dx, dy = floor.pitch_px
     pitch = 0.5 * (dx + dy)
     lo_x, hi_x = floor.col_x[0] - dx / 2, floor.col_x[-1] + dx / 2
     lo_y, hi_y = floor.row_y[0] - dy / 2, floor.row_y[-1] + dy / 2
-    polys, kinds, shapes = [], [], []
+    polys: list[np.ndarray] = []
+    kinds: list[str] = []
+    shapes: list[Polygon] = []
     for _ in range(scene.n_obstacles):
         kind = scene.kinds[int(rng.integers(len(scene.kinds)))]
         best = None

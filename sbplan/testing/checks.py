@@ -6,13 +6,18 @@ from __future__ import annotations
 
 from typing import Any, Callable
 
+import cv2
 import numpy as np
+from shapely.geometry import LineString, Point
 
 from .. import registry
 from ..contours import FREEMAN_STEPS, Contour
 from ..contracts import (Binarizer, ContourApproximator, ContourExtractor, DescriptorMatcher, OccupancyMapper,
                          Planner, Stage)
+from ..detection.bands import RowBands
+from ..detection.grid import fit_grid
 from ..errors import InputError, PlanningError
+from ..planning import PlanningMap, Problem
 from ..polygons import signed_area
 from .pipeline import make_tiny_floor
 
@@ -61,8 +66,6 @@ def _mask_with(*rects: tuple[int, int, int, int], shape=(40, 50), holes=()) -> n
 
 def _random_mask(seed: int, shape=(48, 64)) -> np.ndarray:
     """Blobs with holes: smoothed noise thresholded, so regions are of a few to a few hundred pixels."""
-    import cv2
-
     rng = np.random.default_rng(seed)
     noise = cv2.GaussianBlur(rng.standard_normal(shape).astype(np.float32), (0, 0), 1.6)
     return noise > 0.15
@@ -140,8 +143,6 @@ def check_binarizer_bands(stage: Binarizer) -> None:
     """``binarize_bands`` gives the stacked mask of the bands: what ``binarize`` finds in them,
     away from the band edges (where a filter may see the band's end instead of the next rows),
     and nothing in the separator rows."""
-    from ..detection.bands import RowBands
-
     floor = make_tiny_floor()
     gray = np.array(floor.reference)
     h = gray.shape[0]
@@ -208,8 +209,6 @@ def check_extractor_hole(stage: ContourExtractor) -> None:
 def check_extractor_counts(stage: ContourExtractor, *, seeds=(1, 2, 3)) -> None:
     """On random masks: one outer contour per 8-connected region and one hole per 4-connected
     background region that does not touch the border; every contour closed, chains consistent."""
-    import cv2
-
     for seed in seeds:
         mask = _random_mask(seed)
         n_regions = cv2.connectedComponents(mask.astype(np.uint8), connectivity=8)[0] - 1
@@ -281,8 +280,6 @@ def check_approximator_rectangle(stage: ContourApproximator) -> None:
 def check_approximator_near_contour(stage: ContourApproximator, *, seeds=(1, 2)) -> None:
     """On real contours every vertex lies within 2 px of the contour, and the area of contours
     enclosing at least 200 px^2 is kept within 15 %."""
-    from shapely.geometry import LineString, Point
-
     ext = registry.extractor("opencv")
     for seed in seeds:
         contours = [c for c in ext.extract(_random_mask(seed)) if len(c.points) >= 20]
@@ -374,8 +371,6 @@ def check_matcher_discriminates(stage: DescriptorMatcher) -> None:
 # mapper
 
 def _grid(rows: int = 3, cols: int = 4, pitch: float = 40.0, origin=(30.0, 25.0)):
-    from ..detection.grid import fit_grid
-
     c, r = np.meshgrid(np.arange(cols), np.arange(rows))
     centres = np.c_[origin[0] + pitch * c.ravel(), origin[1] + pitch * r.ravel()]
     return fit_grid(centres)
@@ -407,8 +402,6 @@ def check_mapper(stage: OccupancyMapper) -> None:
 # planner
 
 def _planning_map(radius: float = 0.3):
-    from ..planning import PlanningMap
-
     walls = [np.array([[3, 0], [4, 0], [4, 7], [3, 7]], float), np.array([[6, 3], [7, 3], [7, 10], [6, 10]], float)]
     return PlanningMap(walls, robot_radius=radius, bounds=(0, 0, 10, 10))
 
@@ -416,10 +409,6 @@ def _planning_map(radius: float = 0.3):
 def check_planner_route(stage: Planner, *, time_limit: float = 2.0) -> None:
     """The route runs from start to goal, stays in bounds and keeps the robot radius from every
     obstacle (to 1e-6 of the map's size), and is no shorter than the straight line."""
-    from shapely.geometry import LineString
-
-    from ..planning import Problem
-
     pmap = _planning_map()
     start, goal = np.array([1.0, 1.0]), np.array([9.0, 1.0])
     route = stage.solve(Problem(pmap, start, goal), time_limit=time_limit)
@@ -439,8 +428,6 @@ def check_planner_route(stage: Planner, *, time_limit: float = 2.0) -> None:
 
 def check_planner_rejects_bad_start(stage: Planner, *, time_limit: float = 0.5) -> None:
     """A start inside an obstacle raises a PlanningError (not a crash, not a route)."""
-    from ..planning import Problem
-
     pmap = _planning_map()
     try:
         stage.solve(Problem(pmap, np.array([3.5, 3.0]), np.array([9.0, 1.0])), time_limit=time_limit)

@@ -6,13 +6,17 @@ from __future__ import annotations
 import contextlib
 import functools
 from dataclasses import dataclass
-from typing import Any, Iterator
+from typing import Iterator, Unpack
 
 import numpy as np
 
 from .. import registry
-from ..contracts import Stage
+from ..contracts import Stage, StageChoices
+from ..detection import Calibration, CellDetection, Detection, Detector
+from ..detection.calibration import calibrate
 from ..errors import PluginError
+from ..synth import FloorSpec, SceneSpec, render_reference, render_scene
+from ..synth.truth import GroundTruth
 
 
 @dataclass(frozen=True, eq=False)
@@ -30,10 +34,10 @@ class TinyFloor:
         ``truth.cells[row, col]``: 1 occupied, 0 free, -1 ambiguous (a sliver covered).
     """
 
-    spec: Any
+    spec: FloorSpec
     reference: np.ndarray
     scene: np.ndarray
-    truth: Any
+    truth: GroundTruth
 
     @property
     def occupied(self) -> np.ndarray:
@@ -65,8 +69,6 @@ def make_tiny_floor(*, seed: int = 3, n_obstacles: int = 2, condition: str = "cl
         pixel grid differently, so the reference's symbols are not pixel-identical copies (as on
         a real floor) and a calibration sees their true spread.
     """
-    from ..synth import FloorSpec, SceneSpec, render_reference, render_scene
-
     spec = FloorSpec(width=width, height=height, cols=cols, rows=rows, pitch=pitch)
     reference = render_reference(spec, seed=0)
     scene, truth = render_scene(spec, SceneSpec(n_obstacles=n_obstacles, condition=condition), seed=seed)
@@ -80,28 +82,24 @@ class CalibratedPipeline:
     """A calibration of a :class:`TinyFloor` and detection on its scene."""
 
     floor: TinyFloor
-    calibration: Any
+    calibration: Calibration
 
-    def detect(self, image: np.ndarray | None = None, **stages: Any):
+    def detect(self, image: np.ndarray | None = None, **stages: Unpack[StageChoices]) -> Detection:
         """Detection on ``image`` (default: the floor's scene) with stage overrides by name or instance.
 
         A matcher other than the calibrated one gets its reference descriptor and threshold from
         :meth:`~sbplan.detection.Calibration.matching_for`.
         """
-        from ..detection import Detector
-
         return Detector(self.calibration, **stages)(self.floor.scene if image is None else image)
 
-    def cell_errors(self, detection) -> int:
+    def cell_errors(self, detection: Detection | CellDetection) -> int:
         """Cells where ``detection`` disagrees with the ground truth, ambiguous cells not counted."""
         wrong = detection.occupied != self.floor.occupied
         return int((wrong & ~self.floor.ambiguous).sum())
 
 
-def make_calibrated_pipeline(floor: TinyFloor | None = None, **stages: Any) -> CalibratedPipeline:
+def make_calibrated_pipeline(floor: TinyFloor | None = None, **stages: Unpack[StageChoices]) -> CalibratedPipeline:
     """Calibrate on ``floor.reference`` (default: :func:`make_tiny_floor`) with optional stages."""
-    from ..detection.calibration import calibrate
-
     floor = floor or make_tiny_floor()
     return CalibratedPipeline(floor, calibrate(floor.reference, **stages))
 

@@ -9,12 +9,14 @@ from typing import Iterable
 from textual.app import App, SystemCommand
 from textual.binding import Binding
 from textual.screen import Screen
+from textual_image.widget import HalfcellImage
 
 from ..errors import SbplanError
 from .screens.calibration import CalibrationScreen
 from .screens.detection import DetectionScreen
 from .screens.help import HelpScreen
 from .screens.route import RouteScreen
+from .screens.watch import WatchScreen
 from .session import Session
 
 #: (title, help, screen mode, screen action) for the command palette
@@ -60,6 +62,7 @@ class SbplanApp(App):
         Binding("1", "switch_mode('calibration')", "Calibration"),
         Binding("2", "switch_mode('detection')", "Detection"),
         Binding("3", "switch_mode('route')", "Route"),
+        Binding("w", "watch", "Watch", show=False),
         Binding("f1,question_mark", "help", "Help"),
         Binding("q", "quit", "Quit"),
     ]
@@ -67,9 +70,7 @@ class SbplanApp(App):
     def __init__(self, map_dir: str | os.PathLike | None = None, *, auto: bool = True, image_class=None,
                  hide_timings: bool = False) -> None:
         super().__init__()
-        if image_class is None:
-            from textual_image.widget import HalfcellImage as image_class
-        self.image_class = image_class
+        self.image_class = HalfcellImage if image_class is None else image_class
         self.auto = auto
         self.hide_timings = hide_timings
         self.session = Session.from_map(map_dir)
@@ -83,6 +84,11 @@ class SbplanApp(App):
             self.notify(f"{type(exc).__name__}: {exc}", title="sbplan: internal error", severity="error", timeout=15)
 
     # -- actions ---------------------------------------------------------------------------------
+    def action_watch(self) -> None:
+        """Watch a stream live (screens/watch.py)."""
+        if not isinstance(self.screen, WatchScreen):
+            self.push_screen(WatchScreen())
+
     def action_help(self) -> None:
         if not isinstance(self.screen, HelpScreen):
             self.push_screen(HelpScreen())
@@ -100,5 +106,6 @@ class SbplanApp(App):
                             ("route", "Route screen")):
             yield SystemCommand(title, f"switch to the {mode} screen", partial(self.switch_mode, mode))
         yield SystemCommand("Help", "keys and what each screen does", self.action_help)
-        for title, help_text, mode, action in ACTIONS:
-            yield SystemCommand(title, help_text, partial(self.run_on, mode, action))
+        yield SystemCommand("Watch a stream", "video, image folder, camera or URL, live", self.action_watch)
+        for title, help_text, action_mode, action in ACTIONS:
+            yield SystemCommand(title, help_text, partial(self.run_on, action_mode, action))

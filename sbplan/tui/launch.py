@@ -12,6 +12,7 @@ def launch(map_dir: str | None, *, auto: bool = True, images: str = "auto") -> N
     import textual_image.widget as tiw
 
     image_class = {"auto": tiw.Image, "halfcell": tiw.HalfcellImage, "unicode": tiw.UnicodeImage}[images]
+    # (Textual itself, after textual-image; and sbplan.commands.tui imports this module only to run the app)
     from .app import SbplanApp
 
     SbplanApp(map_dir, auto=auto, image_class=image_class).run()

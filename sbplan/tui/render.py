@@ -10,6 +10,9 @@ from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
+from numpy.typing import ArrayLike
+
+from ..imageio import as_gray
 
 # BGR, as OpenCV draws
 _GRID, _SYMBOL, _CENTRE, _REJECTED = (200, 140, 40), (60, 200, 60), (40, 40, 230), (230, 200, 0)
@@ -22,8 +25,6 @@ def calibration_overlay(image: np.ndarray, calibration) -> np.ndarray:
     Lines are drawn thick enough (about 1/150 of the image width) to survive the downscaling to
     a terminal's half-block resolution.
     """
-    from ..imageio import as_gray
-
     gray = as_gray(image, name="reference")
     out = cv2.cvtColor(gray, cv2.COLOR_GRAY2BGR)
     h, w = gray.shape
@@ -70,7 +71,7 @@ class MapFrame:
         self.x0 = (wd - (xmax - xmin) * self.scale) / 2
         self.y0 = (hd - (ymax - ymin) * self.scale) / 2
 
-    def to_dots(self, xy: np.ndarray) -> np.ndarray:
+    def to_dots(self, xy: ArrayLike) -> np.ndarray:
         """World ``(x, y)`` (N, 2) -> dot ``(col, row)`` (N, 2), float."""
         p = np.asarray(xy, float).reshape(-1, 2)
         xmin, _, _, ymax = self.bounds
@@ -112,7 +113,7 @@ class BrailleCanvas:
         pts = np.rint(self.frame.to_dots(polygon) * 16).astype(np.int32)
         cv2.fillPoly(self._mask(layer), [pts], 1, cv2.LINE_8, shift=4)
 
-    def line(self, layer: str, points: np.ndarray, *, closed: bool = False, dotted: bool = False) -> None:
+    def line(self, layer: str, points: ArrayLike, *, closed: bool = False, dotted: bool = False) -> None:
         """A world polyline (K, 2)."""
         pts = np.rint(self.frame.to_dots(points) * 16).astype(np.int32)
         m = self._mask(layer)

@@ -9,9 +9,18 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Sequence
 
 import numpy as np
+
+from .. import registry
+from ..contracts import StageChoices
+from ..detection import Calibration, Detection, Detector
+from ..detection.calibration import calibrate, load_calibration
+from ..errors import CalibrationError, InputError, MapFormatError
+from ..imageio import load_image
+from ..planning import Route, detection_obstacles, plan, replan
+from ..workspace import load_workspace
 
 #: Stage kinds the operator can swap on the calibration screen, in pipeline order.
 STAGE_KINDS = ("binarizer", "extractor", "approximator", "matcher", "mapper")
@@ -30,23 +39,19 @@ def display_path(path: str | os.PathLike | None) -> str:
 
 def stage_names() -> dict[str, list[str]]:
     """The installed stage names of every selectable kind, from the plugin registry."""
-    from .. import registry
-
     return {kind: getattr(registry, f"{kind}_names")() for kind in STAGE_KINDS}
 
 
-def square(centre: Any, side: float) -> np.ndarray:
+def square(centre: Sequence[float] | np.ndarray, side: float) -> np.ndarray:
     """A square obstacle (4, 2) ``(x, y)`` metres, axis-aligned, of ``side`` around ``centre``."""
     x, y = (float(v) for v in centre)
     h = side / 2
     return np.array([[x - h, y - h], [x + h, y - h], [x + h, y + h], [x - h, y + h]])
 
 
-def obstacle_arrays(detection: Any) -> list[np.ndarray]:
+def obstacle_arrays(detection: Detection) -> list[np.ndarray]:
     """A detection's obstacles as the planner takes them (``detection_obstacles``), in its order,
     as (M, 2) arrays ``(x, y)`` metres (what the map view draws)."""
-    from ..planning import detection_obstacles
-
     return [np.asarray(p.exterior.coords)[:-1] for p in detection_obstacles(detection).polygons]
 
 
@@ -90,21 +95,19 @@ class Session:
     scene_path: Path | None = None
     reference: np.ndarray | None = None
     scene: np.ndarray | None = None
-    calibration: Any = None
-    detection: Any = None
+    calibration: Calibration | None = None
+    detection: Detection | None = None
     start: tuple[float, float] | None = None
     goal: tuple[float, float] | None = None
     planner: str = "aux-corner"
-    route: Any = None
-    old_route: Any = None
+    route: Route | None = None
+    old_route: Route | None = None
     dynamic: list[np.ndarray] = field(default_factory=list)
     robot_fraction: float = 0.3
 
     @classmethod
     def from_map(cls, map_dir: str | os.PathLike | None) -> "Session":
         """A session on a map folder; the reference and the first scene are picked, not loaded."""
-        from ..errors import MapFormatError
-
         s = cls()
         if map_dir is None:
             return s
@@ -127,8 +130,6 @@ class Session:
 
     def workspace(self):
         """The map's workspace.toml, or None when the map has none."""
-        from ..workspace import load_workspace
-
         if self.map_dir is not None and (self.map_dir / "workspace.toml").is_file():
             return load_workspace(self.map_dir)
         return None
@@ -140,15 +141,12 @@ class Session:
         A map folder starts a new session on that map: its workspace, its first scene, and no
         calibration, detection, route or start/goal carried over from the previous map.
         """
-        from ..errors import MapFormatError
-        from ..imageio import load_image
-
         p = Path(path)
         if p.is_dir():
             if not (p / "reference.png").is_file():
                 raise MapFormatError(f"{path}: not a map folder (no reference.png)")
             fresh = Session.from_map(p)
-            image = load_image(fresh.reference_path)
+            image = load_image(p / "reference.png")  # (fresh.reference_path)
             fresh.planner = self.planner
             self.__dict__.update(fresh.__dict__)
             self.reference = image
@@ -157,45 +155,33 @@ class Session:
         self.reference_path, self.reference = p, image
         return image
 
-    def calibrate(self, stages: dict[str, str]) -> Any:
+    def calibrate(self, stages: StageChoices) -> Calibration:
         """Calibrate on the loaded reference with the chosen stages (kind -> name)."""
-        from ..detection.calibration import calibrate
-        from ..errors import InputError
-
         if self.reference is None:
             raise InputError("reference: open a reference image first")
         cal = calibrate(self.reference, workspace=self.workspace(), **stages)
         self.calibration = cal
         ws = cal.workspace
-        self.start = self.start or (tuple(ws.start_m) if ws.start_m else None)
-        self.goal = self.goal or (tuple(ws.goal_m) if ws.goal_m else None)
+        self.start = self.start or ((ws.start_m[0], ws.start_m[1]) if ws.start_m else None)
+        self.goal = self.goal or ((ws.goal_m[0], ws.goal_m[1]) if ws.goal_m else None)
         return cal
 
-    def load_calibration(self, path: str | os.PathLike) -> Any:
-        from ..detection.calibration import load_calibration
-
-        self.calibration = load_calibration(path)
-        return self.calibration
+    def load_calibration(self, path: str | os.PathLike) -> Calibration:
+        self.calibration = cal = load_calibration(path)
+        return cal
 
     def load_scene(self, path: str | os.PathLike) -> np.ndarray:
-        from ..imageio import load_image
-
         image = load_image(path)
         self.scene_path, self.scene = Path(path), image
         return image
 
-    def require_calibration(self):
-        from ..errors import CalibrationError
-
+    def require_calibration(self) -> Calibration:
         if self.calibration is None:
             raise CalibrationError("calibration: calibrate on a reference image first (screen 1)")
         return self.calibration
 
-    def detect(self, image: np.ndarray | None = None) -> Any:
+    def detect(self, image: np.ndarray | None = None) -> Detection:
         """Detect on ``image`` (default: the loaded scene) with the calibrated stages."""
-        from ..detection import Detector
-        from ..errors import InputError
-
         cal = self.require_calibration()
         image = self.scene if image is None else image
         if image is None:
@@ -206,11 +192,8 @@ class Session:
         """The detection's obstacles in metres, (M, 2) ``(x, y)`` each (what the planner avoids)."""
         return [] if self.detection is None else obstacle_arrays(self.detection)
 
-    def plan(self) -> Any:
+    def plan(self) -> Route:
         """Plan from start to goal around the detected obstacles and the dynamic ones."""
-        from ..errors import InputError
-        from ..planning import plan
-
         cal = self.require_calibration()
         if self.start is None or self.goal is None:
             raise InputError("start/goal: set both (type x, y in metres or move the cursor and press s / g)")
@@ -222,16 +205,13 @@ class Session:
             return None
         return point_along(self.route.waypoints, self.robot_fraction)
 
-    def replan(self, new_obstacles: list[np.ndarray]) -> Any:
+    def replan(self, new_obstacles: list[np.ndarray]) -> Route:
         """Replan from the robot's position on the current route around ``new_obstacles``."""
-        from ..errors import InputError
-        from ..planning import replan
-
         if self.route is None:
             raise InputError("route: plan a route first (p)")
         return replan(self.route, self.robot_position(), new_obstacles)
 
-    def new_obstacles_in(self, detection: Any) -> list[np.ndarray]:
+    def new_obstacles_in(self, detection: Detection) -> list[np.ndarray]:
         """The MARs of ``detection``'s obstacles that cover a cell the current detection left free."""
         known = set(self.detection.occupied_cells) if self.detection is not None else set()
         return [a for ob, a in zip(detection.obstacles, obstacle_arrays(detection)) if set(map(tuple, ob.cells)) - known]

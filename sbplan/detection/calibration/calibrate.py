@@ -11,20 +11,21 @@ from __future__ import annotations
 
 import os
 from dataclasses import replace
-from typing import Any
+from typing import Any, Unpack, cast
 
 import cv2
 import numpy as np
 
 from ... import limits, registry
-from ...contracts import distances_between
+from ...contracts import (Binarizer, ContourApproximator, ContourExtractor, DescriptorMatcher, OccupancyMapper,
+                          StageChoices, distances_between)
 from ...errors import CalibrationError, InputError
-from ...imageio import as_gray, load_image
+from ...imageio import ImageInput, as_gray, load_image
 from ...workspace import Workspace, load_workspace
 from ..grid import Grid, fit_grid
 from ..outline_checks import (EDGE_DEPTH_PX, edge_contrast, edge_probes, inner_deviations, inner_tolerance,
                               outline_deviation, reference_samples, signed_distance_map)
-from ..registration import centre_window, grey_centres, thumbnail
+from ..registration import CameraMotion, centre_window, grey_centres, thumbnail
 from .file import SYMBOL_WINDOW, Calibration
 from ..working import WorkScale, work_factor
 from .shapes import Shapes, extract_shapes
@@ -44,7 +45,7 @@ def _stage_spec(stage) -> dict[str, Any]:
     return {"name": stage.name, "options": stage.config()}
 
 
-def _symbol_descriptor_from_image(symbol: Any, *, extractor, approximator, matcher) -> np.ndarray:
+def _symbol_descriptor_from_image(symbol: ImageInput, *, extractor, approximator, matcher) -> np.ndarray:
     gray = as_gray(load_image(symbol) if isinstance(symbol, (str, os.PathLike)) else symbol, name="symbol")
     # An image of one symbol on a plain ground, at any scale: one global threshold separates them
     # (a local binarizer sized for the floor's symbols would not), and the largest dark shape is it.
@@ -56,7 +57,8 @@ def _symbol_descriptor_from_image(symbol: Any, *, extractor, approximator, match
     return shapes.descriptors[int(np.argmax(shapes.areas))]
 
 
-def update_calibration(calibration: Calibration, frame: Any, **stages: Any) -> tuple[Calibration, Any]:
+def update_calibration(calibration: Calibration, frame: ImageInput,
+                       **stages: Unpack[StageChoices]) -> tuple[Calibration, CameraMotion]:
     """Re-anchor a calibration to the camera's present pose from a frame with obstacles on it.
 
     The frame is registered to the calibration with the free symbols it shows
@@ -83,7 +85,7 @@ def update_calibration(calibration: Calibration, frame: Any, **stages: Any) -> t
     CameraMotionError
         The movement cannot be estimated, or is too large to pair symbols with cells.
     """
-    from ..detector import Detector  # the detector is built on calibrations: imported when used
+    from ..detector import Detector  # here, not at the top: detector.py imports this package (a cycle)
 
     cells = Detector(calibration, **stages).find_cells(frame)
     motion = cells.camera
@@ -93,9 +95,11 @@ def update_calibration(calibration: Calibration, frame: Any, **stages: Any) -> t
     return replace(updated, stats=stats), motion
 
 
-def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str | os.PathLike | None = None,
-              cell_size: float | None = None, binarizer: Any = None, extractor: Any = None,
-              approximator: Any = None, matcher: Any = None, mapper: Any = None) -> Calibration:
+def calibrate(reference: ImageInput, *, symbol: ImageInput | None = None,
+              workspace: Workspace | str | os.PathLike | None = None, cell_size: float | None = None,
+              binarizer: str | Binarizer | None = None, extractor: str | ContourExtractor | None = None,
+              approximator: str | ContourApproximator | None = None, matcher: str | DescriptorMatcher | None = None,
+              mapper: str | OccupancyMapper | None = None) -> Calibration:
     """Calibrate on an image of the empty floor.
 
     Parameters
@@ -136,8 +140,10 @@ def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str 
                                   ("matcher", matcher), ("mapper", mapper))}
     h, w = gray.shape
     points_range = (12, max(16, (h + w) // 2))
-    kw = dict(extractor=chosen["extractor"], approximator=chosen["approximator"], matcher=chosen["matcher"])
-    shapes = extract_shapes(gray, binarizer=chosen["binarizer"], points_range=points_range, **kw)
+    matcher_stage = cast(DescriptorMatcher, chosen["matcher"])  # the registry made it for the kind "matcher"
+    extractor_stage, approximator_stage = chosen["extractor"], chosen["approximator"]
+    shapes = extract_shapes(gray, binarizer=chosen["binarizer"], points_range=points_range,
+                            extractor=extractor_stage, approximator=approximator_stage, matcher=matcher_stage)
     given = None if symbol is None else _symbol_descriptor_from_image(
         symbol, extractor=chosen["extractor"], approximator=chosen["approximator"], matcher=chosen["matcher"])
     members = _symbol_members(shapes, chosen["matcher"], ref=given)
@@ -147,17 +153,18 @@ def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str 
     # (sbplan.detection.working): a 4K camera costs what the symbols' size asks, not its pixels.
     size = float(np.sqrt(np.median(shapes.areas[members])))
     work = WorkScale(work_factor(size), gray.shape)
+    work_arg = None if work.identity else work
     if not work.identity:
         points_range = (12, max(16, sum(work.work_shape) // 2))
-        kw["work"] = work
     fit = getattr(chosen["binarizer"], "with_symbol_size", None)
     refit = fit(size * SYMBOL_WINDOW / work.factor) if fit is not None else chosen["binarizer"]
     if refit != chosen["binarizer"] or not work.identity:
         chosen["binarizer"] = refit
-        shapes = extract_shapes(gray, binarizer=refit, points_range=points_range, **kw)
+        shapes = extract_shapes(gray, binarizer=refit, points_range=points_range, work=work_arg,
+                                extractor=extractor_stage, approximator=approximator_stage, matcher=matcher_stage)
         members = _symbol_members(shapes, chosen["matcher"], ref=given)
     reference_descriptor = np.median(shapes.descriptors[members], axis=0)
-    dist = distances_between(chosen["matcher"], shapes.descriptors, reference_descriptor[None, :])[:, 0]
+    dist = distances_between(matcher_stage, shapes.descriptors, reference_descriptor[None, :])[:, 0]
     grid = fit_grid(shapes.centres[members])
     # What a symbol looks like in later images is not what it looks like in this one: measure the
     # symbols again in degraded copies of the reference (defocus, dimmer light, sensor noise).
@@ -168,7 +175,8 @@ def calibrate(reference: Any, *, symbol: Any = None, workspace: Workspace | str 
     distance_map = signed_distance_map(symbol_polygons, gray.shape)
     degraded, deviations, degraded_polygons, degraded_cells, shifts = _degraded_symbols(
         gray, grid, reference_descriptor, cell_area, distance_map,
-        binarizer=chosen["binarizer"], points_range=points_range, **kw)
+        binarizer=chosen["binarizer"], points_range=points_range, work=work_arg,
+        extractor=extractor_stage, approximator=approximator_stage, matcher=matcher_stage)
     # An obstacle that clips a symbol moves part of its outline by more than light and focus
     # move it; the tolerance sits outside what the degraded copies showed, and at least 1 px.
     outline_tolerance = float(max(1.25 * np.max(deviations), 1.0)) if len(deviations) else 3.0
@@ -250,7 +258,11 @@ def _degraded_symbols(gray: np.ndarray, grid: Grid, descriptor: np.ndarray, cell
         np.clip(0.3 * g + rng.normal(0, 4, g.shape), 0, 255).astype(np.uint8),
         np.clip(g + rng.normal(0, 8, g.shape), 0, 255).astype(np.uint8),
     ]
-    distances, deviations, polygons, cells_kept, shifts = [], [], [], [], []
+    distances: list[np.ndarray] = []
+    deviations: list[np.ndarray] = []
+    polygons: list[np.ndarray] = []
+    cells_kept: list[np.ndarray] = []
+    shifts: list[np.ndarray] = []
     for image in copies:
         shapes = extract_shapes(image, binarizer=binarizer, extractor=extractor, approximator=approximator,
                                 matcher=matcher, points_range=points_range, work=work)

@@ -16,7 +16,7 @@ import cv2
 import numpy as np
 
 from ... import limits, registry
-from ...contracts import Stage, descriptors_of, distances_between
+from ...contracts import DescriptorMatcher, Stage, descriptors_of, distances_between
 from ...errors import CalibrationFileError, InputError, MapFormatError, PluginError, UnknownStageError
 from ...imageio import image_size, write_json
 from ...polygons import signed_areas
@@ -106,7 +106,7 @@ class Calibration:
     def symbols_expected(self) -> int:
         return self.grid.rows * self.grid.cols
 
-    def stage(self, kind: str, override: Any = None):
+    def stage(self, kind: str, override: str | Stage | None = None):
         """The stage instance of ``kind``: ``override`` (a name or an instance) or the calibrated one.
 
         A stage with options set to "from the symbol size" (``with_symbol_size``, as the local
@@ -123,7 +123,7 @@ class Calibration:
             stage = fit(math.sqrt(self.symbol_area_px) * SYMBOL_WINDOW / self.work_scale)
         return stage
 
-    def matching_for(self, matcher: Any) -> tuple[np.ndarray, float]:
+    def matching_for(self, matcher: DescriptorMatcher) -> tuple[np.ndarray, float]:
         """The reference descriptor and the match threshold under ``matcher`` (a stage instance).
 
         The calibrated ones when ``matcher`` is the calibrated matcher with the same options;

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 from textual import work
 from textual.binding import Binding
@@ -10,6 +10,12 @@ from textual.screen import Screen
 from textual.worker import get_current_worker
 
 from ..widgets.busy import Busy
+
+if TYPE_CHECKING:
+    from textual import getters
+
+    from ..app import SbplanApp
+    from ..session import Session
 
 
 class JobScreen(Screen):
@@ -22,8 +28,11 @@ class JobScreen(Screen):
 
     BINDINGS = [Binding("escape", "cancel", "Cancel", show=False)]
 
+    if TYPE_CHECKING:  # the app these screens run in (Textual's own pattern; it types it as any App)
+        app = getters.app(SbplanApp)
+
     @property
-    def session(self):
+    def session(self) -> Session:
         return self.app.session
 
     def start_job(self, label: str, fn: Callable[[], Any], done: Callable[[Any], None]) -> None:

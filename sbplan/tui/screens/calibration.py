@@ -2,12 +2,17 @@
 
 from __future__ import annotations
 
+from typing import cast
+
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical, VerticalScroll
 from textual.widgets import Button, Footer, Header, Label, Select, Static
 
+from ...contracts import StageChoices
+from ...detection.calibration import DEFAULT_STAGES
 from ...errors import CalibrationError, InputError
+from ..render import calibration_overlay
 from ..session import STAGE_KINDS, display_path, stage_names
 from ..widgets.busy import Busy
 from ..widgets.path_input import PathInput
@@ -30,7 +35,6 @@ class CalibrationScreen(JobScreen):
 
     def compose(self) -> ComposeResult:
         s = self.session
-        from ...detection.calibration import DEFAULT_STAGES
 
         self._names = names = stage_names()
         yield Header()
@@ -87,17 +91,17 @@ class CalibrationScreen(JobScreen):
 
         self.start_job(f"opening {path}", lambda: self.session.load_reference(path), done)
 
-    def chosen_stages(self) -> dict[str, str]:
+    def chosen_stages(self) -> StageChoices:
         out = {}
         for kind in STAGE_KINDS:
             value = self.query_one(f"#stage-{kind}", Select).value
-            if value is not Select.NULL and value is not None:
+            if isinstance(value, str):  # a stage name; not Select.NULL (nothing chosen)
                 out[kind] = value
-        return out
+        return cast(StageChoices, out)  # keys from STAGE_KINDS
 
     def action_calibrate(self) -> None:
         stages = self.chosen_stages()
-        label = "calibrating with " + ", ".join(stages.values())
+        label = "calibrating with " + ", ".join(str(name) for name in stages.values())
         self.start_job(label, lambda: self.session.calibrate(stages), self._calibrated)
 
     def _calibrated(self, cal, loaded: str | None = None) -> None:
@@ -123,8 +127,6 @@ class CalibrationScreen(JobScreen):
 
     # -- view ------------------------------------------------------------------------------------
     def _show(self) -> None:
-        from ..render import calibration_overlay
-
         s = self.session
         picture = self.query_one("#cal-picture", Picture)
         stats = self.query_one("#cal-stats", Static)

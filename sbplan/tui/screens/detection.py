@@ -9,6 +9,8 @@ from textual.binding import Binding
 from textual.containers import Horizontal, Vertical, VerticalScroll
 from textual.widgets import Button, DataTable, Footer, Header, Label, Static
 
+from ...detection import exports
+from ...detection.exports import overlay_image
 from ...errors import InputError
 from ..session import display_path
 from ..widgets.busy import Busy
@@ -107,8 +109,6 @@ class DetectionScreen(JobScreen):
         det, image = s.detection, s.scene
 
         def job():
-            from ...detection import exports
-
             exports.write_overlay(folder / "overlay.png", image, det)
             exports.write_occupancy(folder / "occupancy.png", det)
             exports.write_geojson(folder / "obstacles.geojson", det)
@@ -121,8 +121,6 @@ class DetectionScreen(JobScreen):
 
     # -- view ------------------------------------------------------------------------------------
     def _show(self) -> None:
-        from ...detection.exports import overlay_image
-
         s = self.session
         det = s.detection
         picture = self.query_one("#det-picture", Picture)
@@ -136,6 +134,7 @@ class DetectionScreen(JobScreen):
                          "not calibrated: calibrate on screen 1 first" if s.calibration is None else None)
             summary.update("not calibrated yet (screen 1)" if s.calibration is None else "no detection yet: press d")
             return
+        assert s.scene is not None  # the detection was made on it
         picture.show(overlay_image(s.scene, det))
         summary.update(
             f"symbols     {det.symbols_found} of {det.symbols_expected} found\n"

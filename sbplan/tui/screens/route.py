@@ -8,7 +8,9 @@ from textual.binding import Binding
 from textual.containers import Horizontal, Vertical, VerticalScroll
 from textual.widgets import Button, Footer, Header, Input, Label, Select, Static
 
+from ... import registry
 from ...errors import InputError
+from ...imageio import load_image
 from ..session import display_path, square
 from ..widgets.busy import Busy
 from ..widgets.mapview import MapView
@@ -50,7 +52,6 @@ class RouteScreen(JobScreen):
 
     def compose(self) -> ComposeResult:
         s = self.session
-        from ... import registry
 
         self._scene_seen = s.scene_path
         yield Header()
@@ -104,7 +105,7 @@ class RouteScreen(JobScreen):
             text = self.query_one(f"#{key}", Input).value.strip()
             setattr(s, key, parse_point(text, key) if text else None)
         planner = self.query_one("#planner", Select).value
-        if planner is not Select.NULL:
+        if isinstance(planner, str):  # a planner's name; not Select.NULL (nothing chosen)
             s.planner = planner
 
     def action_plan(self) -> None:
@@ -174,8 +175,6 @@ class RouteScreen(JobScreen):
             return
 
         def job():
-            from ...imageio import load_image
-
             return s.detect(load_image(path))
 
         def done(det) -> None:
@@ -249,7 +248,7 @@ class RouteScreen(JobScreen):
             self.action_newer_image()
 
     def on_select_changed(self, event: Select.Changed) -> None:
-        if event.select.id == "planner" and event.value is not Select.NULL:
+        if event.select.id == "planner" and isinstance(event.value, str):  # not Select.NULL
             self.session.planner = event.value
 
     def on_button_pressed(self, event: Button.Pressed) -> None:

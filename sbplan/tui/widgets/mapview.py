@@ -80,7 +80,7 @@ class MapView(Widget, can_focus=True):
         if frame is None:
             return Text("no map yet: calibrate (screen 1), then detect (screen 2)", style="italic")
         canvas = BrailleCanvas(frame, LAYERS)
-        xmin, ymin, xmax, ymax = self.bounds
+        xmin, ymin, xmax, ymax = frame.bounds
         px, py = self.pitch
         for x in np.arange(xmin, xmax + 1e-9, px):
             canvas.line("grid", [(x, ymin), (x, ymax)], dotted=True)

@@ -2,11 +2,19 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 from PIL import Image as PILImage
 from textual.app import ComposeResult
 from textual.containers import Container
 from textual.widgets import Static
+from textual_image.widget import BaseImage
+
+if TYPE_CHECKING:
+    from textual import getters
+
+    from ..app import SbplanApp
 
 
 def to_pil(image: np.ndarray) -> PILImage.Image:
@@ -24,6 +32,9 @@ class Picture(Container):
     when one was detected before the app started, half blocks under tests and in tmux.
     """
 
+    if TYPE_CHECKING:  # the app this widget runs in (Textual's own pattern; it types it as any App)
+        app = getters.app(SbplanApp)
+
     def __init__(self, placeholder: str = "no image", **kwargs) -> None:
         super().__init__(**kwargs)
         self._placeholder = placeholder
@@ -34,7 +45,7 @@ class Picture(Container):
 
     def show(self, image: np.ndarray | None, placeholder: str | None = None) -> None:
         """Show ``image`` (gray or BGR array), or the placeholder when None."""
-        view = self.query_one(".image")
+        view = self.query_one(".image", BaseImage)  # (every textual-image widget is one)
         note = self.query_one(".placeholder", Static)
         if placeholder is not None:
             note.update(placeholder)
