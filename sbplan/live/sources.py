@@ -242,6 +242,7 @@ class FolderSource(Source):
     """
 
     kind, live = "folder", False
+    fps: float  # always stated: frames are timed at it
 
     def __init__(self, folder: str | os.PathLike, *, fps: float = 10.0):
         self.folder = Path(folder)
@@ -253,12 +254,13 @@ class FolderSource(Source):
         files = sorted(p for p in self.folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES and p.is_file())
         if not files:
             raise InputError(f"source: {folder}: no images ({', '.join(IMAGE_SUFFIXES)})")
-        numbers = [re.search(r"(\d+)\D*$", p.stem) for p in files]
-        if all(numbers) and len({int(m.group(1)) for m in numbers}) == len(files):
-            pairs = sorted((int(m.group(1)), p) for m, p in zip(numbers, files))
+        found = [re.search(r"(\d+)\D*$", p.stem) for p in files]
+        numbers = [int(m.group(1)) for m in found if m is not None]
+        if len(numbers) == len(files) and len(set(numbers)) == len(files):
+            pairs = sorted(zip(numbers, files))
         else:
             pairs = list(enumerate(files))
-        self.files = pairs
+        self.files: list[tuple[int, Path]] = pairs
 
     def open(self, after: int | None = None) -> "FolderCapture":
         start = 0 if after is None else next((i for i, (n, _) in enumerate(self.files) if n > after), len(self.files))
