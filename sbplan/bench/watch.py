@@ -32,6 +32,7 @@ import json
 import math
 import os
 import platform
+import tempfile
 import threading
 import time
 from pathlib import Path
@@ -40,11 +41,17 @@ from typing import TYPE_CHECKING, Any, Literal, Sequence
 import cv2
 import numpy as np
 
+from sbplan.detection import Detector
+from sbplan.detection.calibration import calibrate
+from sbplan.errors import InputError
+from sbplan.live import IterableSource, VideoSource, Watcher, paced
+from sbplan.synth import FloorSpec
+from sbplan.synth.sequence import demo_sequence, render_sequence, write_sequence
+
 if TYPE_CHECKING:
     from sbplan.detection.calibration import Calibration
     from sbplan.live import Source
     from sbplan.live.watcher import WatchStats
-    from sbplan.synth import FloorSpec
 
 HELP = "live pipeline (sbplan watch): fps with and without decoding, latency, streams per core"
 
@@ -78,10 +85,6 @@ def _grid(size: tuple[int, int]) -> tuple[int, int]:
 
 def _stream(size: tuple[int, int], frames: int, seed: int,
             folder: Path) -> tuple[FloorSpec, list[np.ndarray], Path, Calibration]:
-    from sbplan.detection.calibration import calibrate
-    from sbplan.synth import FloorSpec
-    from sbplan.synth.sequence import demo_sequence, render_sequence, write_sequence
-
     cols, rows = _grid(size)
     floor = FloorSpec(width=size[0], height=size[1], cols=cols, rows=rows)
     spec = demo_sequence(floor, n_frames=frames, fps=30.0)
@@ -93,8 +96,6 @@ def _stream(size: tuple[int, int], frames: int, seed: int,
 
 def _watch(source: Source, cal: Calibration, *, hysteresis: str, **options: Any) -> tuple[WatchStats, float, float]:
     """Run one watch to its end: (stats, wall seconds, process CPU seconds)."""
-    from sbplan.live import Watcher
-
     w = Watcher(source, cal, hysteresis=hysteresis, stall_timeout=30.0, **options)
     t0, c0 = time.perf_counter(), time.process_time()
     for _ in w.events():
@@ -121,11 +122,6 @@ def measure(*, sizes: Sequence[tuple[int, int]] = ((1280, 960), (1920, 1080)), f
             fps: float = 30.0, streams: int = 8, hysteresis: str = "3", seed: int = 0,
             workdir: str | os.PathLike[str] | None = None) -> dict[str, Any]:
     """Run the benchmark; the results as a dict (what ``--json`` prints)."""
-    import tempfile
-
-    from sbplan.errors import InputError
-    from sbplan.live import IterableSource, VideoSource, paced
-
     for name, v, lo in (("--frames", frames, 24), ("--loops", loops, 1), ("--streams", streams, 0)):
         if isinstance(v, bool) or not isinstance(v, int) or v < lo:
             raise InputError(f"{name}: expected an integer >= {lo}, got {v!r}")
@@ -145,8 +141,6 @@ def measure(*, sizes: Sequence[tuple[int, int]] = ((1280, 960), (1920, 1080)), f
 
             # detection of one frame on its own, each frame repeated: the least CPU of the repeats is
             # close to what a quiet machine takes (others' load only ever adds)
-            from sbplan.detection import Detector
-
             det = Detector(cal)
             per_frame = []
             for image in images[::5]:
@@ -196,8 +190,6 @@ def measure(*, sizes: Sequence[tuple[int, int]] = ((1280, 960), (1920, 1080)), f
 
 def _streams(frames: list[np.ndarray], cal: Calibration, *, n: int, fps: float, hysteresis: str) -> dict[str, Any]:
     """``n`` watches at ``fps`` in threads of this process, pinned to one core."""
-    from sbplan.live import IterableSource, Watcher, paced
-
     watchers = [Watcher(paced(IterableSource(frames, live=False, fps=fps)), cal, hysteresis=hysteresis,
                         stall_timeout=30.0) for _ in range(n)]
     before = os.sched_getaffinity(0) if hasattr(os, "sched_setaffinity") else None

@@ -16,15 +16,20 @@ import time
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Callable, Iterator, TypedDict
 
+import cv2
 import numpy as np
 
-from ..errors import CameraMotionError, InputError, PlanningError, SbplanError
+from ..detection import Detector
+from ..detection.calibration import Calibration, load_calibration
+from ..detection.obstacles import find_obstacles
+from ..detection.registration import apply
+from ..errors import CameraMotionError, DetectionError, InputError, PlanningError, SbplanError
+from ..planning import plan, replan
 from .reader import Frame, FrameReader, Notice
 from .sources import Source, open_source
 from .tracking import CellHysteresis, Change, Hysteresis, ObstacleTracker
 
 if TYPE_CHECKING:
-    from ..detection.calibration import Calibration
     from ..detection.obstacles import Obstacle
     from ..detection.registration import CameraMotion
     from ..planning import Route
@@ -176,9 +181,6 @@ class Watcher:
                  skip_unchanged: bool = True, change_threshold: float = 10.0, camera_tolerance_px: float = 1.0,
                  max_frames: int | None = None, stats_interval: float | None = None, keep_image: bool = False,
                  fps: float | None = None, **stages: Any):
-        from ..detection import Detector
-        from ..detection.calibration import Calibration, load_calibration
-
         if not isinstance(hysteresis, Hysteresis):
             hysteresis = Hysteresis.parse(hysteresis)
         for name, v, low in (("stall_timeout", stall_timeout, 0.0), ("change_threshold", change_threshold, 0.0),
@@ -396,11 +398,6 @@ class Watcher:
 
     # -- one frame ---------------------------------------------------------------------------------
     def _process(self, frame: Frame) -> Iterator[Event]:
-        import cv2
-
-        from ..detection.obstacles import find_obstacles
-        from ..errors import DetectionError
-
         cpu0 = time.thread_time()
         image = frame.image
         cal = self.calibration
@@ -470,8 +467,6 @@ class Watcher:
 
     def _pose_change(self, matrix: np.ndarray) -> float:
         """How far ``matrix`` moves the image's corners from where the last reported pose put them."""
-        from ..detection.registration import apply
-
         h, w = self.calibration.image_shape
         corners = np.array([[0, 0], [w - 1, 0], [w - 1, h - 1], [0, h - 1]], float)
         return float(np.abs(apply(matrix, corners) - apply(self._reported_pose, corners)).max())
@@ -499,8 +494,6 @@ class Watcher:
     # -- the route ---------------------------------------------------------------------------------
     def _plan(self, frame: Frame, changes: list[Change], forced: bool) -> Event | None:
         """Plan or replan after ``changes``; the route event, or None when the route stays."""
-        from ..planning import plan, replan
-
         obstacles = [o.mar_m for o in self.tracker.obstacles]
         appeared_only = changes and all(c.kind == "appeared" for c in changes)
         # only new obstacles: the route is updated from its map, not planned anew

@@ -38,6 +38,7 @@ from shapely.geometry import Point, Polygon
 from shapely import affinity
 
 from ..errors import SceneError
+from ..imageio import write_atomic, write_image
 from .floor import FloorSpec, SceneSpec
 from .render import _floor, render_reference, render_scene
 
@@ -278,8 +279,6 @@ def write_sequence(folder: str | os.PathLike, floor: FloorSpec, spec: SequenceSp
 
     Returns the path of the stream (the video file or the frames folder).
     """
-    from ..imageio import write_atomic, write_image
-
     if kind not in KINDS:
         raise SceneError(f"kind: expected one of {', '.join(KINDS)}, got {kind!r}")
     out = Path(folder)

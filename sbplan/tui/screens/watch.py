@@ -18,6 +18,8 @@ from textual.widgets import Button, Checkbox, DataTable, Footer, Header, Label, 
 from textual.worker import get_current_worker
 
 from ...errors import InputError
+from ...live import Watcher, open_source, paced
+from ...live.overlay import live_overlay
 from ..session import display_path
 from ..widgets.path_input import PathInput
 from ..widgets.picture import Picture
@@ -25,7 +27,6 @@ from ..widgets.picture import Picture
 if TYPE_CHECKING:
     from textual import getters
 
-    from ...live import Watcher
     from ...live.watcher import Event
     from ..app import SbplanApp
     from ..session import Session
@@ -158,8 +159,6 @@ class WatchScreen(Screen):
             source = self.query_one("#watch-source", PathInput).value.strip()
             if not source:
                 raise InputError("source: type a video file, image folder, camera index or URL")
-            from ...live import Watcher, open_source, paced
-
             start, goal = (s.start, s.goal) if s.start is not None and s.goal is not None else (None, None)
             src = open_source(source)
             if not src.live and self.query_one("#watch-realtime", Checkbox).value:
@@ -243,8 +242,6 @@ class WatchScreen(Screen):
         state = w.state
         stats = w.stats()
         if state.image is not None and (force or state.frame != self._shown_frame):
-            from ...live.overlay import live_overlay
-
             self._shown_frame = state.frame
             self.query_one("#watch-picture", Picture).show(live_overlay(state.image, state, w.calibration))
         if self._ended is not None:
