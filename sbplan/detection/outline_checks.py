@@ -17,6 +17,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..polygons import resample_xy
+from ._small import median
 
 #: Points per outline at which the deviation is measured.
 SAMPLES = 64
@@ -388,21 +389,33 @@ def intact_edges(kept: np.ndarray, *, max_break: int | np.ndarray = 0, probed: n
         # outline with more broken points than they can hold is not looked at point by point
         counted = ~kept if probed is None else ~kept & probed
         few = ~intact & (limit > 0) & (counted.sum(axis=1) <= limit * EDGE_MAX_BREAKS)
-        for i in np.flatnonzero(few):
-            broken = ~kept[i] if probed is None else ~kept[i][probed[i]]
-            if broken.all():
-                continue
-            # the runs, the outline's start wrapped round to its end
-            start = int(np.argmin(broken))
-            rolled = np.roll(broken, -start).astype(np.int8)
-            edges = np.diff(np.concatenate([[0], rolled, [0]]))
-            begins, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
-            # runs a few kept points apart are one break (a striped surface over the outline
-            # keeps the step here and there; a scratch crosses cleanly)
-            apart = begins[1:] - ends[:-1] > gaps[i]
-            spans = ends[np.r_[np.flatnonzero(apart), len(ends) - 1]] - begins[np.r_[0, np.flatnonzero(apart) + 1]]
-            intact[i] = len(spans) <= EDGE_MAX_BREAKS and spans.max() <= limit[i]
+        for i in np.flatnonzero(few).tolist():
+            broken = (~kept[i] if probed is None else ~kept[i][probed[i]]).tolist()
+            intact[i] = _breaks_short(broken, int(limit[i]), int(gaps[i]))
     return intact
+
+
+def _breaks_short(broken: list[bool], limit: int, gap: int) -> bool:
+    """Do the runs of ``broken`` points around a closed outline make at most EDGE_MAX_BREAKS
+    breaks of at most ``limit`` points each, runs at most ``gap`` kept points apart counting as one
+    break (a striped surface over the outline keeps the step here and there; a scratch crosses
+    cleanly)? A few dozen points: plain Python is several times quicker than numpy's calls here."""
+    if all(broken):
+        return False
+    if not any(broken):
+        return True
+    # the runs, the outline's start wrapped round to its end (start on a kept point)
+    start = broken.index(False)
+    seq = broken[start:] + broken[:start]
+    spans: list[list[int]] = []  # [first broken, last broken + 1] of each break
+    for k, b in enumerate(seq):
+        if not b:
+            continue
+        if spans and k - spans[-1][1] <= gap:
+            spans[-1][1] = k + 1
+        else:
+            spans.append([k, k + 1])
+    return len(spans) <= EDGE_MAX_BREAKS and max(b - a for a, b in spans) <= limit
 
 
 def edges_intact(gray: np.ndarray, x: np.ndarray, y: np.ndarray, factors: np.ndarray, *,
@@ -470,7 +483,7 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
             continue
         patch = gray[y0:y1, x0:x1]
         v = _edge_levels(patch, x[i:i + 1] - x0, y[i:i + 1] - y0)[0].astype(np.float32)
-        step = float(np.median(v[1] - v[0]))
+        step = float(median(v[1] - v[0]))
         if step <= 0:
             continue
         opened = cv2.morphologyEx(patch, cv2.MORPH_OPEN, square)
@@ -495,8 +508,8 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
         # the floor): its straight course on from the line it left inside does.
         beside = cv2.dilate(thin | _straight_courses(thin & inside), cv2.getStructuringElement(
             cv2.MORPH_ELLIPSE, (2 * SCRATCH_WIDTH_PX + 3,) * 2)) > 0
-        paint = (scratch | (beside & (patch > np.median(v[0]) + step / 2))) & (inside > 0)
-        repaired[paint] = np.uint8(np.clip(np.median(v[0]), 0, 255))
+        paint = (scratch | (beside & (patch > median(v[0]) + step / 2))) & (inside > 0)
+        repaired[paint] = np.uint8(np.clip(median(v[0]), 0, 255))
         kept = edge_kept(repaired, x[i:i + 1] - x0, y[i:i + 1] - y0, factors[i:i + 1])
         limit = np.broadcast_to(np.asarray(max_break), (len(outlines),))[i:i + 1]
         gaps = np.broadcast_to(np.asarray(gap), (len(outlines),))[i:i + 1]
@@ -559,7 +572,7 @@ def _scratch_like(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, level
     # edge), ink
     floor, ink = float(np.percentile(levels[1], 50)), float(np.percentile(levels[0], 25))
     darker = SCRATCH_PIECES_FLOOR_LEVEL if in_pieces else SCRATCH_FLOOR_LEVEL
-    if float(np.median(patch[over])) < floor - darker * step:
+    if float(median(patch[over])) < floor - darker * step:
         return False
     near = cv2.dilate(thin, np.ones((7, 7), np.uint8)) > 0
     core = cv2.erode(inside, np.ones((5, 5), np.uint8)) > 0
@@ -567,7 +580,7 @@ def _scratch_like(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, level
     if not beside.any():
         return False
     around = patch[beside].astype(np.float32)
-    return (float(np.median(around)) <= ink + SCRATCH_INK_LEVEL * step
+    return (float(median(around)) <= ink + SCRATCH_INK_LEVEL * step
             and float(np.percentile(around, 90)) <= ink + 2 * SCRATCH_INK_LEVEL * step)
 
 

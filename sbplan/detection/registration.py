@@ -44,6 +44,7 @@ import cv2
 import numpy as np
 
 from ..errors import CameraMotionError
+from ._small import median
 
 if TYPE_CHECKING:
     from .grid import Grid
@@ -193,13 +194,6 @@ def apply(matrix: np.ndarray, xy: np.ndarray) -> np.ndarray:
     return out
 
 
-def _median(values: np.ndarray) -> float:
-    """The median of a short 1-D array (``np.median``'s value, at a tenth of its overhead)."""
-    v = np.sort(values)
-    n = len(v)
-    return float(v[n // 2]) if n % 2 else 0.5 * float(v[n // 2 - 1] + v[n // 2])
-
-
 def _distances(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Row-wise Euclidean distances between (N, 2) arrays."""
     d = a - b
@@ -240,7 +234,7 @@ def _trimmed_fit(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, np.ndarr
     inside RANSAC's threshold). Returns the matrix, the mask of the pairs kept and their RMS."""
     matrix = _similarity_lsq(src, dst)
     resid = _distances(apply(matrix, src), dst)
-    keep = resid <= max(TRIM_FLOOR_PX, TRIM_SIGMAS * 1.4826 * _median(resid))
+    keep = resid <= max(TRIM_FLOOR_PX, TRIM_SIGMAS * 1.4826 * median(resid))
     kept = int(np.count_nonzero(keep))
     if MIN_SYMBOLS <= kept < len(keep):
         matrix = _similarity_lsq(src[keep], dst[keep])
