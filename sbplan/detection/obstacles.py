@@ -7,12 +7,16 @@ described as polygons and each gets its minimum-area rectangle (MAR).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Callable
 
 import cv2
 import numpy as np
 import shapely
 
 from ..contours import as_points
+
+if TYPE_CHECKING:
+    from .grid import Grid
 
 
 @dataclass(frozen=True, eq=False)
@@ -89,7 +93,7 @@ def mar_shapely(points: np.ndarray) -> np.ndarray:
     return coords
 
 
-def _black_regions(occupancy: np.ndarray, occupied: np.ndarray, grid) -> list[np.ndarray]:
+def _black_regions(occupancy: np.ndarray, occupied: np.ndarray, grid: Grid) -> list[np.ndarray]:
     """The outer contours of the occupancy image's black regions (OpenCV's, in image pixels).
 
     The black regions lie around the occupied cells: each group of touching occupied cells is
@@ -123,7 +127,8 @@ def _black_regions(occupancy: np.ndarray, occupied: np.ndarray, grid) -> list[np
     return list(cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)[0])
 
 
-def find_obstacles(occupancy: np.ndarray, occupied: np.ndarray, grid, *, to_world=None) -> list[Obstacle]:
+def find_obstacles(occupancy: np.ndarray, occupied: np.ndarray, grid: Grid, *,
+                   to_world: Callable[[np.ndarray], np.ndarray] | None = None) -> list[Obstacle]:
     """The connected black regions of an occupancy image as obstacles.
 
     Parameters
