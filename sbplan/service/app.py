@@ -99,9 +99,11 @@ def create_app(service: Service, *, token: str | None = None, source: FrameSourc
         return snap.model.model_copy(update={"age_s": time.time() - snap.received})
 
     @app.get("/obstacles.geojson", response_model=models.FeatureCollection, response_class=GeoJSONResponse,
+             response_model_exclude_none=True,
              responses=_ERRORS, tags=["floor"])
     async def obstacles(response: Response) -> Any:
-        """The current obstacles as GeoJSON (outline and MAR of each), world metres."""
+        """The current obstacles as GeoJSON (outline and MAR of each): WGS84 longitude/latitude
+        when the calibration's workspace is georeferenced, else the floor's local metres."""
         snap = service.snapshot()
         response.headers["X-Sbplan-Frame"] = str(snap.frame)
         return await _cached(snap, "geojson", lambda: models.FeatureCollection.model_validate(geojson(snap.detection)))
@@ -117,7 +119,8 @@ def create_app(service: Service, *, token: str | None = None, source: FrameSourc
     @app.get("/map.pgm", response_class=Response,
              responses={200: {"content": {"image/x-portable-graymap": {}}}, **_ERRORS}, tags=["floor"])
     async def map_pgm() -> Response:
-        """The nav2 map image: 0 occupied, 254 free; row 0 is the top (largest y)."""
+        """The nav2 map image: 0 occupied, 254 free, 205 unknown (beyond the floor); row 0 is the top
+        (largest y)."""
         snap = service.snapshot()
         image, _ = await _cached(snap, "nav2", lambda: nav2_map(snap.detection))
         pgm = await _cached(snap, "pgm", lambda: cv2.imencode(".pgm", image)[1].tobytes())

@@ -148,14 +148,26 @@ class Feature(BaseModel):
     properties: FeatureProperties
 
 
+class GeoreferenceModel(BaseModel):
+    latitude_deg: float = Field(description="WGS84 latitude of the world point (0, 0)")
+    longitude_deg: float = Field(description="WGS84 longitude of the world point (0, 0)")
+    heading_deg: float = Field(description="compass heading of the floor's x axis, degrees clockwise from north")
+
+
 class GeoJSONMeta(BaseModel):
-    frame: str = Field(description="the coordinate frame")
-    bounds_m: tuple[float, float, float, float]
+    crs: Literal["WGS84", "local"] = Field(
+        description="WGS84: positions are [longitude, latitude] degrees (RFC 7946); local: [x, y] metres of the "
+                    "floor's world frame, not longitude and latitude")
+    coordinates: str = Field(description="what the positions are, in words")
+    frame: str | None = Field(None, description="the local frame (crs local)")
+    georeference: GeoreferenceModel | None = Field(None, description="where the floor is on the Earth (crs WGS84)")
+    bounds_m: tuple[float, float, float, float] = Field(description="the floor, metres of the local frame")
 
 
 class FeatureCollection(BaseModel):
-    """GET /obstacles.geojson: each obstacle's outline and MAR, world metres (RFC 7946 with a
-    foreign member ``sbplan``; ``sbplan plan --obstacles`` reads it)."""
+    """GET /obstacles.geojson: each obstacle's outline and MAR (RFC 7946 with a foreign member
+    ``sbplan``; ``sbplan plan --obstacles`` reads it): WGS84 longitude/latitude when the
+    calibration's workspace is georeferenced, else the floor's local metres (``sbplan.crs``)."""
 
     type: Literal["FeatureCollection"]
     features: list[Feature]
