@@ -140,7 +140,9 @@ def test_the_wheel_ships_types_schemas_and_license(tmp_path):
         names = set(z.namelist())
         meta = z.read(f"sbplan-{sbplan.__version__}.dist-info/METADATA").decode()
     assert "sbplan/py.typed" in names
-    assert {f"sbplan/schemas/{n}.schema.json" for n in ("detection", "calibration", "route", "geojson")} <= names
+    assert {f"sbplan/schemas/{n}.schema.json"
+            for n in ("detection", "calibration", "route", "geojson", "service-events")} <= names
+    assert "sbplan/live/schemas/events.schema.json" in names  # sbplan watch's events
     assert any(n.endswith(".dist-info/licenses/LICENSE") for n in names)
     assert f"Version: {sbplan.__version__}" in meta and "License-Expression: BSD-3-Clause" in meta
     for dist in ("PyYAML", "rich"):

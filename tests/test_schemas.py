@@ -1,7 +1,9 @@
 """Every JSON sbplan writes validates against the JSON Schema it ships (issue 18, item 11):
 the detection result (its camera member included), the calibration file, the route and the
-GeoJSON, as the library, the command line and the demo write them. Each schema also refuses
-a broken document, so that the validation can fail."""
+GeoJSON, as the library, the command line, the demo and the service write them, and the
+service's WebSocket events. Each schema also refuses a broken document, so that the validation
+can fail. (The events of ``sbplan watch`` have their schema in sbplan/live/schemas/, checked by
+tests/test_live.py against every event its test streams produce.)"""
 
 from __future__ import annotations
 
@@ -22,7 +24,7 @@ from _outputs_fixtures import PAPER, ROOT, moved_floor, paper
 from sbplan.detection import Detector, exports
 from sbplan.workspace import Georeference
 
-NAMES = ("detection", "calibration", "route", "geojson")
+NAMES = ("detection", "calibration", "route", "geojson", "service-events")
 
 
 def schema(name: str) -> dict:
@@ -126,22 +128,45 @@ def test_each_schema_refuses_a_broken_document():
     assert errors("geojson", local)
 
 
-def test_the_service_serves_schema_valid_geojson_in_both_crs(tmp_path):
-    """GET /obstacles.geojson goes through the service's response model: it must keep `crs` and
-    the georeference (a model that dropped them served lon/lat that `plan` would read as metres)."""
-    from _service import SCENE_PNG, client, running
+def test_the_service_serves_schema_valid_json_in_both_crs(tmp_path):
+    """The service's detection JSON (POST /detect, GET /state), its GeoJSON and its WebSocket
+    events validate against the shipped schemas. Its responses go through response models: they
+    must keep the GeoJSON's `crs` and the workspace's georeference (a model that dropped them
+    served lon/lat that `plan` would read as metres)."""
+    from _service import GOAL, SCENE_PNG, START, client, running, ws_connect
     from sbplan.planning import load_obstacles
 
     cal, det, _ = paper()
     geo_cal = replace(cal, workspace=replace(cal.workspace, georeference=Georeference(52.5, 13.4, 30.0)))
+    events: list[str] = []
     for what, c in {"local": cal, "WGS84": geo_cal}.items():
-        with running(c) as (url, _), client(url) as http:
-            assert http.post("/detect", content=SCENE_PNG, headers={"content-type": "image/png"}).status_code == 200
+        with running(c, listeners=[lambda e: events.append(e.text)]) as (url, _), client(url) as http, \
+                ws_connect(url) as ws:
+            events.append(ws.recv(timeout=20))  # hello: sent to each connection, not through listeners
+            detected = http.post("/detect", content=SCENE_PNG, headers={"content-type": "image/png"})
+            assert detected.status_code == 200, detected.text
+            assert http.post("/routes", json={"start": START, "goal": GOAL}).status_code == 201
+            state = http.get("/state").json()
             r = http.get("/obstacles.geojson")
             assert r.status_code == 200, r.text
             doc = r.json()
+        for body in (detected.json(), state):
+            assert errors("detection", body) == [], what
+            assert body["workspace"]["georeference"] == (None if c is cal else geo_cal.workspace.georeference.to_json())
         assert doc["sbplan"]["crs"] == what and errors("geojson", doc) == [], what
         (tmp_path / f"{what}.geojson").write_bytes(r.content)
         loaded = load_obstacles(tmp_path / f"{what}.geojson")
         for a, b in zip(loaded.polygons, (ob.mar_m for ob in det.obstacles)):
             assert a.hausdorff_distance(shapely.Polygon(b)) < 1e-3, what
+    kinds = [json.loads(text)["type"] for text in events]
+    assert {"hello", "detection", "route"} <= set(kinds), kinds
+    for text in events:
+        assert errors("service-events", json.loads(text)) == [], text[:200]
+
+
+def test_the_shipped_service_event_schema_is_what_the_service_serves():
+    """GET /events/schema is made from the service's models; the shipped file must say the same
+    (after changing a model: write sbplan.service.models.events_schema() to the file)."""
+    from sbplan.service.models import events_schema
+
+    assert schema("service-events") == events_schema()

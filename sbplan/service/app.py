@@ -19,7 +19,7 @@ import cv2
 from fastapi import FastAPI, Path, Query, Request, WebSocket
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse, Response
-from pydantic import BaseModel, TypeAdapter, ValidationError
+from pydantic import BaseModel, ValidationError
 from starlette.datastructures import UploadFile
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
@@ -172,7 +172,7 @@ def create_app(service: Service, *, token: str | None = None, source: FrameSourc
         await service.delete_route(route_id)
         return models.Deleted(id=route_id)
 
-    event_schema = TypeAdapter(models.Event).json_schema()
+    event_schema = models.events_schema()
 
     @app.get("/events/schema", response_model=dict, tags=["events"])
     async def events_schema() -> dict:
