@@ -43,8 +43,15 @@ def test_a_nav2_image_is_refused_without_its_yaml(tmp_path):
 
 
 def test_plan_on_the_demo_occupancy_image_is_one_error_line(tmp_path):
-    _, det, _ = paper()
-    exports.write_occupancy(tmp_path / "occupancy.png", det)
+    """The demo's pictures (written as one folder, not through write_occupancy) say what they are too."""
+    from sbplan.commands.demo import demo_files
+
+    cal, det, image = paper()
+    files = demo_files(cal, image, det)
+    for name in ("occupancy.png", "overlay.png"):
+        (tmp_path / name).write_bytes(files[name])
+        with pytest.raises(MapFormatError, match="result.json"):
+            load_obstacles(tmp_path / name)
     r = subprocess.run([sys.executable, "-m", "sbplan", "plan", "--obstacles", str(tmp_path / "occupancy.png"),
                         "--start", "0.1,1.4", "--goal", "3.9,1.6", "--radius", "0.15"], capture_output=True, text=True)
     assert r.returncode != 0 and r.stdout == ""

@@ -39,7 +39,6 @@ def demo_files(calibration, image, detection, route=None) -> dict[str, bytes | s
 
     from ..detection import exports
     from ..files import json_default
-    from ..imageio import encode_image
 
     def as_json(obj) -> str:
         return json.dumps(obj, indent=2, default=json_default) + "\n"
@@ -47,8 +46,9 @@ def demo_files(calibration, image, detection, route=None) -> dict[str, bytes | s
     files: dict[str, bytes | str] = {
         "calibration.json": as_json(calibration.to_json()),
         "result.json": as_json(detection.to_json()),
-        "overlay.png": encode_image("overlay.png", exports.overlay_image(image, detection)),
-        "occupancy.png": encode_image("occupancy.png", detection.occupancy),
+        # the pictures say in their metadata that they are camera pixels: plan refuses them as maps
+        "overlay.png": exports.encode_overlay("overlay.png", image, detection),
+        "occupancy.png": exports.encode_occupancy("occupancy.png", detection),
         "obstacles.geojson": json.dumps(exports.geojson(detection), indent=1) + "\n",
         **{f"nav2/{name}": data for name, data in exports.nav2_files(detection).items()},
     }

@@ -16,7 +16,7 @@ import numpy as np
 from .. import limits
 from ..errors import InputError
 from ..files import write_atomic, write_file_set
-from ..imageio import as_gray, encode_image, write_image
+from ..imageio import as_gray, encode_image
 from ..polygons import signed_area
 from ..workspace import Georeference
 from .result import Detection
@@ -78,18 +78,27 @@ def overlay_image(image: np.ndarray, detection: Detection) -> np.ndarray:
     return out
 
 
+def encode_overlay(path: str | os.PathLike, image: np.ndarray, detection: Detection) -> bytes:
+    """The overlay picture (:func:`overlay_image`), in the camera's pixels, encoded for ``path``'s
+    ending; a PNG or PGM says what it is in its metadata (``sbplan: overlay``)."""
+    return encode_image(path, overlay_image(image, detection), text={"sbplan": "overlay", "Description": OVERLAY_NOTE})
+
+
 def write_overlay(path: str | os.PathLike, image: np.ndarray, detection: Detection) -> Path:
-    """The overlay picture (:func:`overlay_image`), in the camera's pixels; a PNG or PGM says
-    what it is in its metadata (``sbplan: overlay``)."""
-    return write_image(path, overlay_image(image, detection), text={"sbplan": "overlay", "Description": OVERLAY_NOTE})
+    """Write :func:`encode_overlay` atomically."""
+    return write_atomic(path, encode_overlay(path, image, detection))
+
+
+def encode_occupancy(path: str | os.PathLike, detection: Detection) -> bytes:
+    """The occupancy image (paper figure 14): black occupied blocks on white, in the camera's
+    pixels (the calibration's), encoded for ``path``'s ending. A PNG or PGM says what it is in its
+    metadata (``sbplan: camera-occupancy``): ``sbplan plan`` refuses it as a map of the floor."""
+    return encode_image(path, detection.occupancy, text={"sbplan": "camera-occupancy", "Description": OCCUPANCY_NOTE})
 
 
 def write_occupancy(path: str | os.PathLike, detection: Detection) -> Path:
-    """The occupancy image (paper figure 14): black occupied blocks on white, in the camera's
-    pixels (the calibration's). A PNG or PGM says what it is in its metadata (``sbplan:
-    camera-occupancy``): ``sbplan plan`` refuses it as a map of the floor."""
-    return write_image(path, detection.occupancy,
-                       text={"sbplan": "camera-occupancy", "Description": OCCUPANCY_NOTE})
+    """Write :func:`encode_occupancy` atomically."""
+    return write_atomic(path, encode_occupancy(path, detection))
 
 
 def geojson(detection: Detection, *, georeference: Georeference | None = None) -> dict:
