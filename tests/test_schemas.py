@@ -22,6 +22,7 @@ from shapely.geometry import box
 import sbplan
 from _outputs_fixtures import PAPER, ROOT, moved_floor, paper
 from sbplan.detection import Detector, exports
+from sbplan.errors import MapFormatError
 from sbplan.workspace import Georeference
 
 NAMES = ("detection", "calibration", "route", "geojson", "service-events")
@@ -130,7 +131,7 @@ def test_each_schema_refuses_a_broken_document():
 
 def test_the_service_serves_schema_valid_json_in_both_crs(tmp_path):
     """The service's detection JSON (POST /detect, GET /state), its GeoJSON and its WebSocket
-    events validate against the shipped schemas. Its responses go through response models: they
+    events validate against the shipped schemas; its nav2 image is marked as one. Its responses go through response models: they
     must keep the GeoJSON's `crs` and the workspace's georeference (a model that dropped them
     served lon/lat that `plan` would read as metres)."""
     from _service import GOAL, SCENE_PNG, START, client, running, ws_connect
@@ -150,6 +151,11 @@ def test_the_service_serves_schema_valid_json_in_both_crs(tmp_path):
             r = http.get("/obstacles.geojson")
             assert r.status_code == 200, r.text
             doc = r.json()
+            pgm = http.get("/map.pgm").content
+        # the served nav2 image says what it is, as the one detect writes: plan wants its map.yaml
+        (tmp_path / "map.pgm").write_bytes(pgm)
+        with pytest.raises(MapFormatError, match="map.yaml"):
+            load_obstacles(tmp_path / "map.pgm")
         for body in (detected.json(), state):
             assert errors("detection", body) == [], what
             assert body["workspace"]["georeference"] == (None if c is cal else geo_cal.workspace.georeference.to_json())

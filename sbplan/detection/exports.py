@@ -217,8 +217,13 @@ def nav2_map(detection: Detection, *, resolution: float | None = None) -> tuple[
 def nav2_files(detection: Detection, *, resolution: float | None = None) -> dict[str, bytes | str]:
     """The nav2 map's files, ``{"map.yaml": text, "map.pgm": bytes}`` (see :func:`nav2_map`)."""
     image, meta = nav2_map(detection, resolution=resolution)
-    return {"map.yaml": nav2_yaml(meta),
-            meta["image"]: encode_image(meta["image"], image, text={"sbplan": "nav2-map", "Description": NAV2_IMAGE_NOTE})}
+    return {"map.yaml": nav2_yaml(meta), meta["image"]: encode_nav2_image(meta["image"], image)}
+
+
+def encode_nav2_image(name: str, image: np.ndarray) -> bytes:
+    """A nav2 map's image (:func:`nav2_map`) encoded for ``name``'s ending; a PNG or PGM says what
+    it is in its metadata (``sbplan: nav2-map``): ``sbplan plan`` refuses it without its map.yaml."""
+    return encode_image(name, image, text={"sbplan": "nav2-map", "Description": NAV2_IMAGE_NOTE})
 
 
 def nav2_yaml(meta: dict) -> str:

@@ -15,7 +15,6 @@ import logging
 import time
 from typing import Any, Sequence
 
-import cv2
 from fastapi import FastAPI, Path, Query, Request, WebSocket
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse, Response
@@ -24,7 +23,7 @@ from starlette.datastructures import UploadFile
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from .. import __version__
-from ..detection.exports import geojson, nav2_map, nav2_yaml
+from ..detection.exports import encode_nav2_image, geojson, nav2_map, nav2_yaml
 from ..errors import ImageError, SbplanError
 from . import models
 from .core import Service
@@ -123,7 +122,7 @@ def create_app(service: Service, *, token: str | None = None, source: FrameSourc
         (largest y)."""
         snap = service.snapshot()
         image, _ = await _cached(snap, "nav2", lambda: nav2_map(snap.detection))
-        pgm = await _cached(snap, "pgm", lambda: cv2.imencode(".pgm", image)[1].tobytes())
+        pgm = await _cached(snap, "pgm", lambda: encode_nav2_image("map.pgm", image))
         return Response(pgm, media_type="image/x-portable-graymap", headers={"X-Sbplan-Frame": str(snap.frame)})
 
     @app.post("/detect", response_model=models.Detected, responses=_ERRORS, tags=["floor"], openapi_extra={
