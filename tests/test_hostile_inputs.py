@@ -218,6 +218,8 @@ _TINY_PNG = base64.b64encode(cv2.imencode(".png", np.zeros((3, 3), np.uint8))[1]
     ("stages.mapper", _DELETE, "stages.mapper"),
     ("workspace.robot_radius_m", float("nan"), "workspace"),
     ("workspace.pitch_m", [0.5, float("inf")], "workspace"),
+    ("workspace.pitch_m", [1e308, 1e308], "workspace"),  # finite, but every world coordinate overflows
+    ("workspace.origin_m", [-1e300, 0.0], "workspace"),
     ("other_polygons", {"a": 1}, "other_polygons"),
 ])
 def test_every_calibration_field_is_checked_on_load(site, tmp_path, path, value, field):
@@ -600,6 +602,7 @@ def test_bad_input_lists_for_calibrate_detect_and_plan(site, tmp_path, capsys):
     lists = {
         "calibrate": [
             [ref], [ref, "-o", tmp_path / "c.json", "--cell-size", "-1"], [ref, "-o", tmp_path / "c.json", "--cell-size", "nan"],
+            [ref, "-o", tmp_path / "c.json", "--cell-size", "1e308"],
             [junk, "-o", tmp_path / "c.json"], [tmp_path, "-o", tmp_path / "c.json"], [small, "-o", tmp_path / "c.json"],
             [ref, "-o", tmp_path / "c.json", "--workspace", toml], [ref, "-o", tmp_path / "c.json", "--workspace", bad_ws],
             [ref, "-o", tmp_path / "c.json", "--symbol", junk], [ref, "-o", tmp_path / "c.json", "--matcher", "x"],
