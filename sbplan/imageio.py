@@ -10,6 +10,8 @@ from __future__ import annotations
 import os
 import stat
 import struct
+import sys
+import tempfile
 import zlib
 from pathlib import Path
 from typing import Any
@@ -258,18 +260,50 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
     if w <= 0 or h <= 0:
         raise ImageError(f"{p}: not an image OpenCV can read (its header says {w} x {h} pixels)")
     limits.check("image_pixels", w * h, f"{p}: {w} x {h} pixels", "give a smaller image")
-    try:
-        image = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
-    except cv2.error:
-        image = None
+    image, said = _decode(data)
     if image is None:
-        raise ImageError(f"{p}: not an image OpenCV can read")
+        raise ImageError(f"{p}: not an image OpenCV can read" + (f" ({said[-1]})" if said else ""))
     h, w = image.shape[:2]
     if h * w > top:  # a header that understated the size (a GIF frame larger than its screen)
         limits.check("image_pixels", h * w, f"{p}: decoded to {w} x {h} pixels", "give a smaller image")
     if image.size == 0:
         raise ImageError(f"{p}: empty image")
     return image
+
+
+def _decode(data: np.ndarray) -> tuple[np.ndarray | None, list[str]]:
+    """``cv2.imdecode`` with what libpng says about a damaged file taken off the process's stderr.
+
+    libpng prints "libpng error: ..." on file descriptor 2 itself, below Python: a command would
+    print two lines for one damaged file. Its lines are returned, for the error message; anything
+    else written to descriptor 2 meanwhile (another thread) is passed on.
+    """
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError, AttributeError):  # no descriptor 2 (a daemon): nothing to keep clean
+        saved = None
+    if saved is None:
+        try:
+            return cv2.imdecode(data, cv2.IMREAD_UNCHANGED), []
+        except cv2.error:
+            return None, []
+    with tempfile.TemporaryFile() as caught:
+        os.dup2(caught.fileno(), 2)
+        try:
+            image = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
+        except cv2.error:
+            image = None
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+        caught.seek(0)
+        lines = caught.read().decode("utf-8", "replace").splitlines(keepends=True)
+    said = [line.strip() for line in lines if line.startswith("libpng ")]
+    others = "".join(line for line in lines if not line.startswith("libpng "))
+    if others:
+        os.write(2, others.encode("utf-8"))
+    return image, said
 
 
 def encode_image(path: str | os.PathLike, image: np.ndarray, *, text: dict[str, str] | None = None) -> bytes:

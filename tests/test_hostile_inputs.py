@@ -586,11 +586,15 @@ def test_verbose_after_the_command_shows_the_traceback(site, tmp_path, capsys):
 
 
 # -- bad-input lists: 0 tracebacks ---------------------------------------------------------------------
-def test_bad_input_lists_for_calibrate_detect_and_plan(site, tmp_path, capsys):
+def test_bad_input_lists_for_calibrate_detect_and_plan(site, tmp_path, capfd):
+    # capfd, not capsys: what native libraries print on descriptor 2 (libpng) counts as a line too
+    capsys = capfd
     folder = site[0]
     scene, cal, result, ref = folder / "scene.png", folder / "cal.json", folder / "result.json", folder / "reference.png"
     junk = tmp_path / "junk.png"
     junk.write_bytes(b"\x89PNG\r\n\x1a\n not really")
+    damaged = tmp_path / "damaged.png"  # a true header, then a broken zlib stream: libpng speaks
+    damaged.write_bytes(_png_claiming(48, 36)[:33] + struct.pack(">I", 7) + b"IDATgarbage" + bytes(4))
     empty = tmp_path / "empty.json"
     empty.write_text("")
     small = tmp_path / "small.png"
@@ -609,7 +613,7 @@ def test_bad_input_lists_for_calibrate_detect_and_plan(site, tmp_path, capsys):
             ["--update", empty, scene], ["--update", cal, small], ["--update", cal, scene, "--cell-size", "1"],
         ],
         "detect": [
-            [scene, "-c", empty], [scene, "-c", junk], [junk, "-c", cal], [small, "-c", cal], [scene, "-c", tmp_path],
+            [scene, "-c", empty], [scene, "-c", junk], [junk, "-c", cal], [damaged, "-c", cal], [small, "-c", cal], [scene, "-c", tmp_path],
             [scene, "-c", cal, "--nav2-resolution", "inf", "--nav2", tmp_path / "n"],
             [scene, "-c", cal, "--nav2-resolution", "0", "--nav2", tmp_path / "n"],
             [scene, "-c", cal, "--geojson", tmp_path], [scene, "-c", cal, "--binarizer", "nope"],
@@ -637,8 +641,8 @@ def test_bad_input_lists_for_calibrate_detect_and_plan(site, tmp_path, capsys):
         for argv in argvs:
             code, _, err = _run(capsys, command, *argv)
             _one_line_error(code, err)
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["empty.json", "junk.png", "small.png", "workspace.toml",
-                                                          "ws.toml"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["damaged.png", "empty.json", "junk.png", "small.png",
+                                                          "workspace.toml", "ws.toml"]
 
 
 # -- the service: the same garbage over HTTP gets a 4xx with a code, never a 500 ----------------------
