@@ -32,7 +32,7 @@ import stat
 import tempfile
 import time
 from pathlib import Path
-from typing import Any, Callable, Iterable, Mapping
+from typing import IO, Any, Callable, Iterable, Mapping
 
 from .errors import OutputError
 
@@ -112,12 +112,13 @@ def write_atomic(path: str | os.PathLike, write: Callable[[Any], None] | bytes |
         # mkstemp makes the file private (0600); a result file should be as readable as any other
         # (a replaced file keeps its mode)
         os.chmod(tmp, p.stat().st_mode & 0o7777 if p.exists() else 0o644)
-        mode = "wb" if binary and not isinstance(write, str) else "w"
-        with os.fdopen(fd, mode, **({} if "b" in mode else {"encoding": "utf-8"})) as fh:
+        fh: IO[Any] = (os.fdopen(fd, "w", encoding="utf-8") if callable(write) and not binary
+                       else os.fdopen(fd, "wb"))
+        with fh:
             if callable(write):
                 write(fh)
             else:
-                fh.write(write)
+                fh.write(write.encode("utf-8") if isinstance(write, str) else write)
             fh.flush()
             os.fsync(fh.fileno())
         _check_target(p)  # made a special file or a link while we wrote: still not ours to replace
@@ -328,10 +329,10 @@ def clean_stale_temporaries(folder: str | os.PathLike) -> list[str]:
     shared folder) or in the form older versions wrote, after :data:`STALE_SECONDS`. Returns the
     names removed.
     """
-    removed = []
+    removed: list[str] = []
     now = time.time()
     try:
-        entries = list(os.scandir(folder))
+        entries = list(os.scandir(os.fspath(folder)))
     except OSError:
         return removed
     for entry in entries:
@@ -370,8 +371,8 @@ def _same(a: Path, b: Path) -> bool:
         return os.path.abspath(a) == os.path.abspath(b)
 
 
-def check_outputs(outputs: Mapping[str, Any], inputs: Mapping[str, Any] = (), *,
-                  folders: Mapping[str, Iterable[str]] = (), images: Iterable[str] = ()) -> None:
+def check_outputs(outputs: Mapping[str, Any], inputs: Mapping[str, Any] | None = None, *,
+                  folders: Mapping[str, Iterable[str]] | None = None, images: Iterable[str] = ()) -> None:
     """Refuse, before any work, outputs a command must not write.
 
     Parameters
@@ -392,9 +393,9 @@ def check_outputs(outputs: Mapping[str, Any], inputs: Mapping[str, Any] = (), *,
         An output is a folder, a device, a FIFO or a symbolic link; is one of the inputs (or holds
         one, for a folder); is named twice; or has an image ending no encoder writes.
     """
-    given_in = {k: Path(v) for k, v in dict(inputs).items() if v is not None}
+    given_in = {k: Path(v) for k, v in (inputs or {}).items() if v is not None}
     given_out = {k: Path(v) for k, v in outputs.items() if v is not None}
-    folders = dict(folders)
+    folders = dict(folders or {})
     images = set(images)
     seen: dict[str, str] = {}
     for opt, p in given_out.items():

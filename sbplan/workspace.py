@@ -118,9 +118,11 @@ def load_workspace(path: str | os.PathLike) -> Workspace:
     radius = tables["robot"].get("radius_m", 0.0)
     if isinstance(radius, bool) or not isinstance(radius, (int, float)):
         raise MapFormatError(f"{p} [robot]: radius_m must be a number, got {radius!r}")
+    pitch = _pair(tables["grid"], "pitch_m", f"{p} [grid]", required=True)
+    assert pitch is not None  # required: _pair raised otherwise
     try:
         return Workspace(
-            pitch_m=_pair(tables["grid"], "pitch_m", f"{p} [grid]", required=True),
+            pitch_m=pitch,
             origin_m=_pair(tables["origin"], "xy_m", f"{p} [origin]"),
             robot_radius_m=float(radius),
             start_m=_pair(tables["route"], "start_m", f"{p} [route]"),

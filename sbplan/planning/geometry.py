@@ -92,8 +92,8 @@ def as_polygons(obstacles: Iterable, *, name: str = "obstacles") -> list[Polygon
                 raise InputError(f"{name}[{i}]: coordinates reach {np.abs(coords).max():.3g}, beyond the "
                                  f"{MAX_COORDINATE:g} the planner's arithmetic holds; clip obstacles to the workspace")
             if not p.is_valid:
-                p = shapely.make_valid(p)
-                parts2 = [g for g in getattr(p, "geoms", [p]) if isinstance(g, Polygon)]
+                valid = shapely.make_valid(p)
+                parts2 = [g for g in getattr(valid, "geoms", [valid]) if isinstance(g, Polygon)]
                 out.extend(g for g in parts2 if _has_area(g))
                 continue
             if _has_area(p):
