@@ -351,7 +351,8 @@ def pixel_outlines(gray: np.ndarray, occupied: np.ndarray, reference: FootprintR
     win = (slice(y0, y1), slice(x0, x1))
     roi, occ = roi[win], occ[win]
     # a movement under a quarter pixel is under 1/16 of a small pixel: not worth a warp
-    moved = camera is not None and camera.moved
+    camera = CameraMotion.none() if camera is None else camera
+    moved = camera.moved
     small = _downsample(gray, s, (h, w))
     warp = moved and camera.max_movement_px >= 0.25
     frame = _in_calibration(small, camera, s, (x0, y0, x1, y1)) if warp else small[win]
@@ -427,14 +428,14 @@ def pixel_outlines(gray: np.ndarray, occupied: np.ndarray, reference: FootprintR
     if debug is not None:
         debug.update(labels=markers, region=region)
     contours, _ = cv2.findContours(region.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
-    out = []
+    outlines: list[np.ndarray] = []
     for c in contours:
         # 0.7 of a small pixel: the margin's pixel keeps the outline outside what was found
         c = cv2.approxPolyDP(c, 0.7, True) if len(c) > 4 else c
         if len(c) < 3:
             c = _box(c)
-        out.append(_full(c[:, 0, :].astype(np.float64) + (x0, y0), s))
-    return out
+        outlines.append(_full(c[:, 0, :].astype(np.float64) + (x0, y0), s))
+    return outlines
 
 
 def _supported(region: np.ndarray, occ: np.ndarray, floor: np.ndarray, frame: np.ndarray, log_reference: np.ndarray,

@@ -215,7 +215,8 @@ def _from_geojson(data: dict, src: str, model: str | None = None) -> ObstacleSet
             shell = _poly(rings[0], f"{src}: features[{i}]")
             holes = [_poly(r, f"{src}: features[{i}] hole").exterior.coords for r in rings[1:]]
             items.append((kind, Polygon(shell.exterior.coords, holes)))
-    meta = data.get("sbplan") if isinstance(data.get("sbplan"), dict) else {}
+    found = data.get("sbplan")
+    meta: dict = found if isinstance(found, dict) else {}
     # the features of the obstacle model asked for, else of the one the file was written with
     # (files written before the models: their MARs)
     from ..detection.exports import GEOJSON_KINDS
