@@ -112,12 +112,16 @@ def test_outputs_show_the_polygons_the_planner_used(corner, calibration, tmp_pat
         got = load_obstacles(tmp_path / f"{model}.geojson").polygons
         assert len(got) == len(planned)
         assert shapely.union_all(got).symmetric_difference(want).area < 1e-5  # the file rounds to 1e-6 m
-        # nav2: every map pixel they touch is occupied, and no pixel much further from them
+        # nav2: every map pixel they reach into is occupied, and no other
         exports.write_nav2(tmp_path / model, detection, model=model)
-        nav2 = shapely.union_all(load_obstacles(tmp_path / model / "map.yaml").polygons)
+        nav2 = load_obstacles(tmp_path / model / "map.yaml")
+        assert want.difference(shapely.union_all(nav2.polygons)).area < 1e-9
+        pgm = cv2.imread(str(tmp_path / model / "map.pgm"), cv2.IMREAD_UNCHANGED)
         res = min(calibration.workspace.pitch_m) / 10
-        assert want.difference(nav2).area < 1e-9
-        assert nav2.difference(want.buffer(2 * res, join_style="mitre")).area < 1e-9
+        rows, cols = np.nonzero(pgm == 0)
+        x0, y0 = nav2.bounds[0] + cols * res, nav2.bounds[1] + (pgm.shape[0] - 1 - rows) * res
+        pixels = shapely.box(x0, y0, x0 + res, y0 + res)
+        assert len(pixels) and (shapely.area(shapely.intersection(pixels, want)) > 1e-6 * res * res).all()
         # overlay: the planner's polygons and clearance, drawn through the grid
         rings, clearance = exports.overlay_polygons(detection, model)
         assert len(rings) == len(pmap.obstacles)
@@ -173,6 +177,27 @@ def test_footprints_are_tighter_than_cells(corner, calibration):
     assert pixels.recall > 0.98 and pixels.recall >= paper.recall
     assert pixels.area_ratio < 1.3 < paper.area_ratio
     assert pixels.swallowed["parts"] == 0 < paper.swallowed["mar"]
+
+
+def test_the_nav2_map_marks_exactly_the_pixels_an_obstacle_reaches_into():
+    """nav2_pixels against the plain definition (every pixel square's overlap, one by one): a
+    rectangle on pixel edges, a rotated one, a concave outline and one past the map's border."""
+    res, shape, origin = 0.05, (40, 60), (-0.5, 1.0)
+    rng = np.random.default_rng(3)
+    star = [(np.cos(t) * r, np.sin(t) * r) for t, r in zip(np.linspace(0, 2 * np.pi, 14, endpoint=False),
+                                                            rng.uniform(0.2, 0.6, 14))]
+    polygons = [np.array([[0.0, 1.5], [0.5, 1.5], [0.5, 2.0], [0.0, 2.0]]),
+                np.asarray(shapely.affinity.rotate(shapely.box(1.0, 1.3, 1.73, 1.61), 27).exterior.coords)[:-1],
+                np.array(star) + (1.4, 2.4), np.array([[2.2, 2.6], [2.8, 2.9], [2.3, 3.3]])]
+    rows, cols = np.mgrid[:shape[0], :shape[1]]
+    x0, y0 = origin[0] + cols * res, origin[1] + (shape[0] - 1 - rows) * res
+    squares = shapely.box(x0, y0, x0 + res, y0 + res)
+    for p in polygons:
+        got = exports.nav2_pixels([p], shape=shape, resolution=res, origin=origin)
+        want = shapely.area(shapely.intersection(squares, Polygon(p))) > 1e-6 * res * res
+        assert got.any() and (got == want).all()
+    # the one on pixel edges: its 10 x 10 pixels, not one more
+    assert exports.nav2_pixels(polygons[:1], shape=shape, resolution=res, origin=origin).sum() == 100
 
 
 def test_old_calibrations_fall_back_to_the_cells(corner, calibration):

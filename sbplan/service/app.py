@@ -111,7 +111,7 @@ def create_app(service: Service, *, token: str | None = None, source: FrameSourc
     @app.get("/map.yaml", response_class=Response, responses={200: {"content": {"text/yaml": {}}}, **_ERRORS},
              tags=["floor"])
     async def map_yaml() -> Response:
-        """The ROS 2 nav2 map_server YAML of the current occupancy (its image: GET /map.pgm)."""
+        """The ROS 2 nav2 map_server YAML of what the service plans around (its image: GET /map.pgm)."""
         snap = service.snapshot()
         _, meta = await _cached(snap, "nav2", lambda: nav2_map(snap.detection, model=service.use))
         return Response(nav2_yaml(meta), media_type="text/yaml", headers={"X-Sbplan-Frame": str(snap.frame)})
