@@ -18,6 +18,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import shapely
+from shapely.geometry.base import BaseGeometry
 
 from .. import limits
 from ..errors import InputError
@@ -247,7 +248,7 @@ def nav2_pixels(polygons: list, *, shape: tuple[int, int], resolution: float,
     occupied = np.zeros((h, w), bool)
     for p in polygons:
         ring = np.asarray(p, np.float64)
-        poly = shapely.Polygon(ring)
+        poly: BaseGeometry = shapely.Polygon(ring)
         if not poly.is_valid:  # a self-touching outline: its area as the planner's union sees it
             poly = shapely.make_valid(poly)
         if not (poly.area > 0):
