@@ -78,6 +78,9 @@ class Stage(ABC):
     kind: ClassVar[str] = ""
     name: ClassVar[str] = ""
     description: ClassVar[str] = ""
+    #: Other names the registry finds the stage under (a library's own name for it, such as
+    #: OMPL's ``RRTstar`` for ``rrt-star``); listings show ``name`` only.
+    aliases: ClassVar[tuple[str, ...]] = ()
 
     @classmethod
     def options(cls) -> list[OptionInfo]:

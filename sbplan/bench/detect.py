@@ -32,7 +32,7 @@ import json
 import math
 import platform
 import time
-from typing import Any, Callable, cast
+from typing import TYPE_CHECKING, Any, Callable, TypeVar, cast
 
 import cv2
 import numpy as np
@@ -46,6 +46,12 @@ from sbplan.detection.calibration import DEFAULT_STAGES, calibrate
 from sbplan.errors import InputError, SbplanError
 from sbplan.imageio import write_image
 from sbplan.synth import CONDITIONS, FloorSpec
+
+if TYPE_CHECKING:
+    from sbplan.detection.registration import CameraMotion
+    from sbplan.synth.truth import GroundTruth
+
+R = TypeVar("R")
 
 HELP = "cell occupancy: sbplan vs ArUco grid vs background subtraction, per condition"
 KINDS = ("binarizer", "extractor", "approximator", "matcher", "mapper")
@@ -111,7 +117,7 @@ def sbplan_variants(*, all_variants: bool = True) -> list[tuple[str, StageChoice
     return out
 
 
-def _motion_error(camera, truth) -> tuple[float, float]:
+def _motion_error(camera: CameraMotion, truth: GroundTruth) -> tuple[float, float]:
     """How far the movement a detection reported is from the renderer's: the largest error of
     the shift (pixels) and of the rotation (degrees)."""
     m = truth.params["camera"].get("motion") or {"shift_px": [0.0, 0.0], "rotation_deg": 0.0}
@@ -119,8 +125,9 @@ def _motion_error(camera, truth) -> tuple[float, float]:
     return err_px, abs(camera.rotation_deg - m["rotation_deg"])
 
 
-def _timed(fn, image, repeat: int) -> tuple[Any, list[float]]:
-    runs, result = [], None
+def _timed(fn: Callable[[np.ndarray], R], image: np.ndarray, repeat: int) -> tuple[R, list[float]]:
+    """``fn(image)`` run ``repeat`` (>= 1) times: its last result, and milliseconds per run."""
+    runs: list[float] = []
     for _ in range(repeat):
         t0 = time.perf_counter()
         result = fn(image)
@@ -154,7 +161,7 @@ def measure(*, conditions: list[str] | None = None, scenes: int = 5, size: tuple
     out_rows: list[dict] = []
     stage_ms: dict[str, list[float]] = {}
     full_ms: list[float] = []
-    full_detector = None
+    full_detector: Detector | None = None
     footprint_rows: list[dict] = []
     footprint_cpu: dict[str, list[float]] = {}
     for cond in names:
@@ -195,10 +202,12 @@ def measure(*, conditions: list[str] | None = None, scenes: int = 5, size: tuple
                         motion_deg.append(err_deg)
                         for k, v in result.timings_ms.items():
                             stage_ms.setdefault(k, []).append(v)
-                        # issue 4's figure: the whole detection, obstacles included
-                        detection, runs = _timed(full_detector, image, repeat)
-                        full_ms += runs
-                        detections.append((image, detection, truth))
+                        # issue 4's figure: the whole detection, obstacles included (the default's
+                        # detector: set with its fn above, so never None here)
+                        if full_detector is not None:
+                            detection, runs = _timed(full_detector, image, repeat)
+                            full_ms += runs
+                            detections.append((image, detection, truth))
             ok = fn is not None and len(frames) > 0
             out_rows.append({
                 "condition": cond, "method": label, "default": is_default, "frames": len(frames) if fn is not None else 0,
@@ -246,15 +255,16 @@ def _footprints(cond: str, detector, detections: list, repeat: int, cpu: dict[st
 
     from sbplan.bench.evaluation import FootprintScores, score_footprints
     from sbplan.detection.obstacles import OBSTACLE_MODELS, obstacles_from_outlines
+    from sbplan.contracts import FootprintRefiner
     from sbplan.registry import registry
 
     cal = detector.calibration
     rows = []
     for name in FOOTPRINTS:
-        stage = registry().create("footprint", name)
+        stage = cast(FootprintRefiner, registry().create("footprint", name))
         data = stage.prepare(cal)
         if data is None and stage.fallback:
-            stage = registry().create("footprint", stage.fallback)
+            stage = cast(FootprintRefiner, registry().create("footprint", stage.fallback))
             data = stage.prepare(cal)
         total, times = FootprintScores(), []
         for image, detection, truth in detections:

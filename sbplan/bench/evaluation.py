@@ -15,7 +15,7 @@ from typing import Any, Iterator
 import numpy as np
 
 from ..errors import InputError
-from ..synth import FloorSpec, SceneSpec, render_reference, render_scene
+from ..synth import FloorSpec, GroundTruth, SceneSpec, render_reference, render_scene
 
 
 @dataclass(frozen=True)
@@ -67,7 +67,7 @@ def score_cells(predicted: np.ndarray, truth: np.ndarray) -> Scores:
 
 def condition_scenes(condition: str, *, scenes: int = 5, size: tuple[int, int] = (1280, 960),
                      grid: tuple[int, int] = (10, 5), seed: int = 0, layout: str | None = None,
-                     **floor_options: Any) -> Iterator[tuple[np.ndarray, np.ndarray, Any]]:
+                     **floor_options: Any) -> Iterator[tuple[np.ndarray, np.ndarray, GroundTruth]]:
     """Yield ``(reference, scene, truth)`` for one condition of the renderer's suite, seeded.
 
     The reference shares the scenes' camera (tilt, distortion) and is lit with base lighting.

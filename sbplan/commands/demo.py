@@ -6,6 +6,12 @@ import argparse
 from pathlib import Path
 
 HELP = "calibrate, detect and plan a route on an example map (default maps/paper-8x6)"
+DESCRIPTION = (
+    "Calibrate, detect and plan on an example map, writing every output into one folder: "
+    "calibration.json and result.json (pixels of the calibration image; metres of the floor's local "
+    "frame, x along the grid's columns, y up toward row 0), overlay.png and occupancy.png (camera "
+    "pixels: pictures, not maps), obstacles.geojson (WGS84 longitude/latitude when the floor is "
+    "georeferenced, else local metres), nav2/ (a ROS 2 map in local metres) and route.json (local metres).")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -17,8 +23,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "replaced as a whole, so it must be new or hold only a previous demo's files")
     parser.add_argument("--planner", default="aux-corner", help="planner stage (default: %(default)s)")
     from ._stage_options import add_obstacle_model_argument
+    from .detect import add_georef_argument
 
     add_obstacle_model_argument(parser, what="(planner, overlay, GeoJSON, nav2)")
+    add_georef_argument(parser)
 
 
 #: What the demo's output folder holds (it is replaced as a whole, so it may hold nothing else).
@@ -34,7 +42,6 @@ def demo_files(calibration, image, detection, route=None, model: str | None = No
 
     from ..detection import exports
     from ..files import json_default
-    from ..imageio import encode_image
     from ..detection.obstacles import DEFAULT_OBSTACLE_MODEL
 
     model = model or DEFAULT_OBSTACLE_MODEL
@@ -45,8 +52,9 @@ def demo_files(calibration, image, detection, route=None, model: str | None = No
     files: dict[str, bytes | str] = {
         "calibration.json": as_json(calibration.to_json()),
         "result.json": as_json(detection.to_json()),
-        "overlay.png": encode_image("overlay.png", exports.overlay_image(image, detection, model)),
-        "occupancy.png": encode_image("occupancy.png", detection.occupancy),
+        # the pictures say in their metadata that they are camera pixels: plan refuses them as maps
+        "overlay.png": exports.encode_overlay("overlay.png", image, detection, model),
+        "occupancy.png": exports.encode_occupancy("occupancy.png", detection),
         "obstacles.geojson": json.dumps(exports.geojson(detection, model), indent=1) + "\n",
         **{f"nav2/{name}": data for name, data in exports.nav2_files(detection, model=model).items()},
     }
@@ -73,6 +81,12 @@ def run(args: argparse.Namespace) -> int:
     check_set_folder(out, DEMO_FILES, what="-o")  # refused before the work, not after it
     workspace = load_workspace(folder) if (folder / "workspace.toml").is_file() else None
     print(f"map {folder}: calibrating on reference.png")
+    if args.georef is not None:
+        from dataclasses import replace
+
+        from ..workspace import Georeference, Workspace
+
+        workspace = replace(workspace or Workspace(), georeference=Georeference.parse(args.georef))
     cal = calibrate(folder / "reference.png", workspace=workspace)
     print(f"  grid {cal.grid.cols} x {cal.grid.rows}, threshold {cal.threshold:.4f}, margin {cal.margin:.1f}x")
     image = load_image(folder / args.scene)
@@ -93,7 +107,7 @@ def run(args: argparse.Namespace) -> int:
                      planner=args.planner, bounds=obstacles.bounds)
         pts = " -> ".join(f"({x:.2f}, {y:.2f})" for x, y in route.waypoints)
         print(f"route ({route.planner}, {route.status}, obstacles as {args.obstacle_model}): {route.length:.3f} m "
-              f"in {route.time * 1e3:.2f} ms")
+              f"in {route.time_s * 1e3:.2f} ms")
         print(f"  {pts}")
     # every file of the run goes into the folder at once: a reader never sees one run's result
     # beside another run's GeoJSON (sbplan.files.write_file_set)

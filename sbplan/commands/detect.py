@@ -4,11 +4,34 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 
 from ._stage_options import add_obstacle_model_argument, add_stage_arguments, stage_choices
 
 HELP = "detect occupied cells and obstacles in a scene image"
+DESCRIPTION = (
+    "Detect the occupied cells and the obstacles of a scene. Outputs: the JSON result (pixels of the "
+    "calibration image, x right, y down; metres of the floor's local frame, x along the grid's columns, "
+    "y up toward row 0), the overlay and occupancy pictures (camera pixels: not maps), GeoJSON (WGS84 "
+    "longitude/latitude when georeferenced, else local metres) and a nav2 map (local metres).")
+
+
+def add_georef_argument(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--georef", metavar="LAT,LON,HEADING", default=None,
+                        help="where the floor is on the Earth, for GeoJSON: WGS84 latitude and longitude (degrees) "
+                             "of the world point (0, 0) and the compass heading of the floor's x axis (degrees "
+                             "clockwise from north); overrides workspace.toml's [georeference]")
+
+
+def with_georeference(calibration, text: str | None):
+    """The calibration with the floor georeferenced by ``--georef`` (unchanged without it)."""
+    if text is None:
+        return calibration
+    from dataclasses import replace
+
+    from ..workspace import Georeference
+
+    geo = Georeference.parse(text)
+    return replace(calibration, workspace=replace(calibration.workspace, georeference=geo))
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -19,8 +42,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--overlay", metavar="PNG",
                         help="write the scene with cells, footprints, what the planner avoids and numbered obstacles")
     parser.add_argument("--occupancy", metavar="PNG", help="write the occupancy image (paper figure 14)")
-    parser.add_argument("--geojson", metavar="FILE", help="write the obstacles as GeoJSON (metres)")
-    parser.add_argument("--nav2", metavar="DIR", help="write a ROS 2 nav2 map (map.yaml + map.pgm) into DIR")
+    parser.add_argument("--geojson", metavar="FILE",
+                        help="write the obstacles as GeoJSON: RFC 7946 WGS84 longitude/latitude when the floor is "
+                             "georeferenced (--georef, or [georeference] in the calibration's workspace.toml), "
+                             "else the floor's local frame in metres (x along the columns, y up toward row 0)")
+    add_georef_argument(parser)
+    parser.add_argument("--nav2", metavar="DIR",
+                        help="write a ROS 2 nav2 map (map.yaml + map.pgm) into DIR: the floor's local frame, "
+                             "metres, origin = the map's bottom-left corner")
     parser.add_argument("--nav2-resolution", type=float, metavar="M", help="nav2 map metres per pixel")
     add_obstacle_model_argument(parser, what="in the overlay, GeoJSON and nav2 map")
     add_stage_arguments(parser)
@@ -65,7 +94,7 @@ def run(args: argparse.Namespace) -> int:
                   folders={"--nav2": exports.NAV2_FILES}, images=("--overlay", "--occupancy"))
     if args.nav2_resolution is not None:
         exports.nav2_resolution(args.nav2_resolution, (1.0, 1.0))
-    cal = load_calibration(args.calibration)
+    cal = with_georeference(load_calibration(args.calibration), args.georef)
     image = load_image(args.scene)
     detection = Detector(cal, **stage_choices(args))(image)
     result = detection.to_json()
@@ -80,8 +109,6 @@ def run(args: argparse.Namespace) -> int:
         exports.write_geojson(args.geojson, detection, model)
     if args.nav2:
         exports.write_nav2(args.nav2, detection, resolution=args.nav2_resolution, model=model)
-    if detection.camera.warning:
-        print(f"sbplan: warning: {detection.camera.warning}", file=sys.stderr)
     if args.json:
         print(json.dumps(result))
     else:

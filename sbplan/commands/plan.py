@@ -75,10 +75,10 @@ def run(args: argparse.Namespace) -> int:
         write_image(args.plot, draw_route(pm.obstacles, pm.enlarged, pm.bounds, route=route.waypoints,
                                           start=args.start, goal=args.goal))
     if args.json:
-        print(json.dumps({"format": "sbplan.route/1", **route.to_dict()}, indent=2))
+        print(json.dumps(route.to_dict(), indent=2))
     else:
         print(f"{route.status} route by {route.planner}: length {route.length:.6g}, "
-              f"{len(route.waypoints)} waypoints, {route.time * 1e3:.2f} ms")
+              f"{len(route.waypoints)} waypoints, {route.time_s * 1e3:.2f} ms")
         for x, y in route.waypoints:
             print(f"  {x:.6g},{y:.6g}")
     return 0

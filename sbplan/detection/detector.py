@@ -8,6 +8,7 @@ once (stages, reference descriptors, thresholds), so a stream of frames pays onl
 from __future__ import annotations
 
 import collections.abc
+import logging
 import os
 import time
 from dataclasses import replace
@@ -31,6 +32,8 @@ from .outline_checks import (EDGE_DEPTH_PX, EDGE_SAMPLES, EDGE_UNPROBED, scratch
 from .registration import MIN_SYMBOLS, CameraMotion, apply, centre_window, grey_centres, refine, register_pairs
 from .result import CellDetection, Detection
 from .working import WorkScale
+
+log = logging.getLogger(__name__)
 
 #: Row bands reach this many symbol sizes (and at least BAND_MARGIN_PX) above and below the
 #: reference symbols: room for defocus and small camera shake.
@@ -148,6 +151,10 @@ class Detector:
         self.stage_names = {"binarizer": self.binarizer.name, "extractor": self.extractor.name,
                             "approximator": self.approximator.name, "matcher": self.matcher.name,
                             "mapper": self.mapper.name, "footprint": self.footprint.name}
+        log.debug("detector: %s; row bands %s, registration %s",
+                  ", ".join(f"{k} {v}" for k, v in self.stage_names.items()),
+                  "on" if self.bands is not None else "off", "on" if self.register else "off",
+                  extra={"data": {"stages": self.stage_names}})
 
     def _bands_for(self, matrix: np.ndarray) -> RowBands | None:
         """The row bands around the symbols as a camera moved by ``matrix`` (calibration -> frame)
@@ -330,6 +337,8 @@ class Detector:
                 matched = np.concatenate([matched, self._cell_centres[whole]])
         lap("match")
         timings["total"] = (time.perf_counter() - t0) * 1e3
+        if motion.warning:
+            log.warning(motion.warning, extra={"data": {"camera": motion.to_json()}})
         return CellDetection(~found, matched_count, matched, candidates, timings, gray.shape, motion,
                              symbols_rescued=rescued)
 
@@ -435,6 +444,12 @@ class Detector:
         obstacles = self.obstacles(gray, cells.occupied, occupancy, cells.camera, timings)
         timings["obstacles"] = (time.perf_counter() - now) * 1e3 - timings["footprint"]
         timings["total"] = (time.perf_counter() - t0) * 1e3
+        if log.isEnabledFor(logging.DEBUG):
+            log.debug("%d/%d symbols, %d occupied cells, %d obstacles in %.1f ms (%s)", cells.symbols_found,
+                      cal.symbols_expected, int(cells.occupied.sum()), len(obstacles), timings["total"],
+                      ", ".join(f"{k} {v:.1f}" for k, v in timings.items() if k != "total"),
+                      extra={"data": {"timings_ms": timings, "symbols_found": cells.symbols_found,
+                                      "occupied_cells": int(cells.occupied.sum()), "obstacles": len(obstacles)}})
         return Detection(cal, cells.occupied, cells.symbols_found, cells.matched_centres_px, occupancy,
                          obstacles, timings, self.stage_names, cells.candidates_px, cells.camera,
                          symbols_rescued=cells.symbols_rescued)

@@ -23,10 +23,21 @@ from shapely.geometry.base import BaseGeometry
 from .. import limits
 from ..errors import InputError
 from ..files import write_atomic, write_file_set
-from ..imageio import as_gray, encode_image, write_image
+from ..imageio import as_gray, encode_image
 from ..polygons import signed_area
 from .obstacles import DEFAULT_OBSTACLE_MODEL, check_obstacle_model
+from ..workspace import Georeference
 from .result import Detection
+
+#: nav2 map pixels (trinary mode, negate 0): what map_saver writes for occupied, free and unknown.
+NAV2_OCCUPIED, NAV2_FREE, NAV2_UNKNOWN = 0, 254, 205
+
+#: What the images that are not maps say of themselves (PNG text, PGM comment): ``sbplan plan``
+#: refuses them with a message naming the files to plan on (sbplan.planning.loaders).
+OCCUPANCY_NOTE = ("the occupancy image of sbplan detect: the camera's pixels (black = occupied cell), not a map "
+                  "of the floor; plan on the detection result (-o result.json), the GeoJSON or the nav2 map.yaml")
+OVERLAY_NOTE = "the overlay picture of sbplan detect: the camera's view with the detection drawn on it, not a map"
+NAV2_IMAGE_NOTE = "the image of a nav2 map: map.yaml beside it gives its resolution and origin"
 
 _RED, _GREEN, _YELLOW, _CYAN, _WHITE, _BLACK = (40, 40, 230), (60, 200, 60), (0, 220, 255), (230, 200, 0), (255, 255, 255), (0, 0, 0)
 _ORANGE = (0, 140, 255)
@@ -142,14 +153,30 @@ def overlay_image(image: np.ndarray, detection: Detection, model: str = DEFAULT_
     return out
 
 
+def encode_overlay(path: str | os.PathLike, image: np.ndarray, detection: Detection,
+                   model: str = DEFAULT_OBSTACLE_MODEL, **planner: float) -> bytes:
+    """The overlay picture (:func:`overlay_image`), in the camera's pixels, encoded for ``path``'s
+    ending; a PNG or PGM says what it is in its metadata (``sbplan: overlay``)."""
+    return encode_image(path, overlay_image(image, detection, model, **planner),
+                        text={"sbplan": "overlay", "Description": OVERLAY_NOTE})
+
+
 def write_overlay(path: str | os.PathLike, image: np.ndarray, detection: Detection,
                   model: str = DEFAULT_OBSTACLE_MODEL, **planner: float) -> Path:
-    return write_image(path, overlay_image(image, detection, model, **planner))
+    """Write :func:`encode_overlay` atomically."""
+    return write_atomic(path, encode_overlay(path, image, detection, model, **planner))
+
+
+def encode_occupancy(path: str | os.PathLike, detection: Detection) -> bytes:
+    """The occupancy image (paper figure 14): black occupied blocks on white, in the camera's
+    pixels (the calibration's), encoded for ``path``'s ending. A PNG or PGM says what it is in its
+    metadata (``sbplan: camera-occupancy``): ``sbplan plan`` refuses it as a map of the floor."""
+    return encode_image(path, detection.occupancy, text={"sbplan": "camera-occupancy", "Description": OCCUPANCY_NOTE})
 
 
 def write_occupancy(path: str | os.PathLike, detection: Detection) -> Path:
-    """The occupancy image (paper figure 14): black occupied blocks on white."""
-    return write_image(path, detection.occupancy)
+    """Write :func:`encode_occupancy` atomically."""
+    return write_atomic(path, encode_occupancy(path, detection))
 
 
 #: GeoJSON ``kind`` of the features that hold each obstacle model's polygons (the footprint's
@@ -157,25 +184,39 @@ def write_occupancy(path: str | os.PathLike, detection: Detection) -> Path:
 GEOJSON_KINDS = {"mar": "mar", "parts": "part", "outline": "outline"}
 
 
-def geojson(detection: Detection, model: str = DEFAULT_OBSTACLE_MODEL) -> dict:
-    """Obstacles as a GeoJSON FeatureCollection in the local metric frame (metres, y up).
+def geojson(detection: Detection, model: str = DEFAULT_OBSTACLE_MODEL, *,
+            georeference: Georeference | None = None) -> dict:
+    """Obstacles as a GeoJSON FeatureCollection.
 
     Each obstacle gives its footprint's outline (``kind: "outline"``) and, unless the model is
     ``outline``, the polygons the planner avoids under ``model``: its MAR (``kind: "mar"``) or its
-    parts (``kind: "part"``, one feature each, numbered by ``part``). The foreign member ``sbplan``
-    records the frame, the floor's bounds and ``obstacle_model``, which tells a reader
-    (:func:`sbplan.planning.load_obstacles`) which features to plan around.
+    parts (``kind: "part"``, one feature each, numbered by ``part``); exterior rings
+    counter-clockwise (RFC 7946's right-hand rule).
+
+    Coordinates are RFC 7946's WGS84 ``[longitude, latitude]`` in degrees (9 decimals, about
+    0.1 mm) when the floor is georeferenced (``georeference``, by default the calibration's
+    ``workspace.georeference``), else the local world frame's ``[x, y]`` in metres (x right along
+    the grid's columns, y up toward row 0), which GIS tools read as degrees near (0, 0): they are
+    for sbplan and programs that know the frame. The foreign member ``sbplan`` says which
+    (``crs``: ``"WGS84"`` or ``"local"``), the georeference, the floor's bounds in metres and
+    ``obstacle_model``, which tells a reader (:func:`sbplan.planning.load_obstacles`) which
+    features to plan around.
     """
     check_obstacle_model(model)
+    geo = georeference if georeference is not None else detection.calibration.workspace.georeference
     features = []
 
     def feature(ring, props) -> dict:
         ring = np.asarray(ring, np.float64)
-        # RFC 7946: exterior rings counter-clockwise in the y-up world frame, which is clockwise
-        # in geometry.signed_area's y-down convention; first point repeated
+        if geo is not None:
+            ring, digits = geo.to_lonlat(ring), 9
+        else:
+            digits = 6
+        # RFC 7946: exterior rings counter-clockwise with y (latitude) up, which is clockwise
+        # in polygons.signed_area's y-down convention; first point repeated
         if signed_area(ring) > 0:
             ring = ring[::-1]
-        coords = np.vstack([ring, ring[:1]]).round(6).tolist()
+        coords = np.vstack([ring, ring[:1]]).round(digits).tolist()
         return {"type": "Feature", "geometry": {"type": "Polygon", "coordinates": [coords]}, "properties": props}
 
     for ob in detection.obstacles:
@@ -188,19 +229,20 @@ def geojson(detection: Detection, model: str = DEFAULT_OBSTACLE_MODEL) -> dict:
             if model == "parts":
                 props["part"] = k
             features.append(feature(ring, props))
-    return {
-        "type": "FeatureCollection",
-        "features": features,
-        "sbplan": {
-            "frame": "local metric frame: metres, x right along the grid's columns, y up toward row 0",
-            "bounds_m": [round(v, 6) for v in detection.calibration.world_bounds()],
-            "obstacle_model": model,
-        },
-    }
+    meta: dict = {"bounds_m": [round(v, 6) for v in detection.calibration.world_bounds()], "obstacle_model": model}
+    if geo is not None:
+        meta = {"crs": "WGS84", "coordinates": "[longitude, latitude] in degrees (RFC 7946)",
+                "georeference": geo.to_json(), **meta}
+    else:
+        meta = {"crs": "local", "coordinates": "[x, y] in metres of the local frame, not longitude and latitude",
+                "frame": "local metric frame: metres, x right along the grid's columns, y up toward row 0", **meta}
+    return {"type": "FeatureCollection", "features": features, "sbplan": meta}
 
 
-def write_geojson(path: str | os.PathLike, detection: Detection, model: str = DEFAULT_OBSTACLE_MODEL) -> Path:
-    return write_atomic(path, json.dumps(geojson(detection, model), indent=1) + "\n")
+def write_geojson(path: str | os.PathLike, detection: Detection, model: str = DEFAULT_OBSTACLE_MODEL, *,
+                  georeference: Georeference | None = None) -> Path:
+    """Write :func:`geojson` atomically."""
+    return write_atomic(path, json.dumps(geojson(detection, model, georeference=georeference), indent=1) + "\n")
 
 
 #: What a nav2 map folder written by :func:`write_nav2` holds.
@@ -293,9 +335,12 @@ def nav2_map(detection: Detection, *, resolution: float | None = None,
     1e-6 of the pixel's: a sliver that thin is float rounding on a pixel edge). So the map holds
     every polygon, grows none by more than the pixels its edges cross, and holds a polygon whose
     edges lie on pixel edges (the ``cells`` footprint's outlines at the default resolution)
-    exactly: :func:`nav2_pixels`. Pixel 0 = occupied, 254 = free; row 0 of the image is the top
-    (largest y), as map_server expects; ``origin`` is the world pose of the bottom-left pixel's
-    corner.
+    exactly: :func:`nav2_pixels`. Pixel 0 = occupied, 254 = free, 205 = unknown: the pixels of the
+    last column and the top row that reach beyond the floor when ``resolution`` does not divide its
+    size (the map says nothing about what lies there). Row 0 of the image is the top (largest y),
+    as map_server expects; ``origin`` is the world pose of the bottom-left pixel's corner.
+    ``free_thresh`` is 0.196 (map_server's classic value), below 205's occupancy (50/255 =
+    0.1961), so map_server loads 205 as unknown (with nav2 map_saver's 0.25 it would load as free).
 
     Raises
     ------
@@ -311,12 +356,19 @@ def nav2_map(detection: Detection, *, resolution: float | None = None,
     fw, fh = np.ceil((xmax - xmin) / res - 1e-9), np.ceil((ymax - ymin) / res - 1e-9)
     limits.check("map_pixels", float(fw) * float(fh),
                  f"a nav2 map of {fw:.0f} x {fh:.0f} pixels at {res:g} m per pixel", "give a coarser --nav2-resolution")
-    occupied = nav2_pixels(detection.planner_obstacles(model), shape=(int(fh), int(fw)), resolution=res,
+    width, height = int(fw), int(fh)
+    image = np.full((height, width), NAV2_UNKNOWN, np.uint8)
+    # free: the pixels wholly on the floor (to a billionth of its size: floating-point rounding)
+    eps = 1e-9 * max(xmax - xmin, ymax - ymin)
+    cols_in = int(np.sum(xmin + (np.arange(width) + 1) * res <= xmax + eps))
+    rows_in = int(np.sum(ymin + (np.arange(height) + 1) * res <= ymax + eps))
+    image[height - rows_in:, :cols_in] = NAV2_FREE
+    occupied = nav2_pixels(detection.planner_obstacles(model), shape=(height, width), resolution=res,
                            origin=(xmin, ymin))
-    image = np.where(occupied, 0, 254).astype(np.uint8)
+    image[occupied] = NAV2_OCCUPIED
     meta = {"image": "map.pgm", "mode": "trinary", "resolution": float(res),
             "origin": [float(xmin), float(ymin), 0.0], "negate": 0,
-            "occupied_thresh": 0.65, "free_thresh": 0.25, "obstacle_model": model}
+            "occupied_thresh": 0.65, "free_thresh": 0.196, "obstacle_model": model}
     return image, meta
 
 
@@ -324,7 +376,13 @@ def nav2_files(detection: Detection, *, resolution: float | None = None,
                model: str = DEFAULT_OBSTACLE_MODEL) -> dict[str, bytes | str]:
     """The nav2 map's files, ``{"map.yaml": text, "map.pgm": bytes}`` (see :func:`nav2_map`)."""
     image, meta = nav2_map(detection, resolution=resolution, model=model)
-    return {"map.yaml": nav2_yaml(meta), meta["image"]: encode_image(meta["image"], image)}
+    return {"map.yaml": nav2_yaml(meta), meta["image"]: encode_nav2_image(meta["image"], image)}
+
+
+def encode_nav2_image(name: str, image: np.ndarray) -> bytes:
+    """A nav2 map's image (:func:`nav2_map`) encoded for ``name``'s ending; a PNG or PGM says what
+    it is in its metadata (``sbplan: nav2-map``): ``sbplan plan`` refuses it without its map.yaml."""
+    return encode_image(name, image, text={"sbplan": "nav2-map", "Description": NAV2_IMAGE_NOTE})
 
 
 def nav2_yaml(meta: dict) -> str:

@@ -22,7 +22,7 @@ All three contain the outline, so each keeps the robot off everything the footpr
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Callable, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 import cv2
 import numpy as np
@@ -52,6 +52,9 @@ def check_obstacle_model(model: Any) -> str:
         raise InputError(f"obstacle_model: expected one of {', '.join(OBSTACLE_MODELS)}, got {model!r}")
     return model
 
+if TYPE_CHECKING:
+    from .grid import Grid
+
 
 @dataclass(frozen=True, eq=False)
 class Obstacle:
@@ -73,11 +76,13 @@ class Obstacle:
         check_obstacle_model(model)
         if self.outline_m is None:
             raise InputError(f"obstacle {self.id}: no world frame (metric outlines) to plan on")
-        if model == "mar":
+        if model == "mar" and self.mar_m is not None:
             return [self.mar_m]
         if model == "outline":
             return [self.outline_m]
-        return list(self.parts_m)
+        if model == "parts" and self.parts_m is not None:
+            return list(self.parts_m)
+        raise InputError(f"obstacle {self.id}: no {model} polygons in the world frame to plan on")
 
     def polygons_px(self, model: str = DEFAULT_OBSTACLE_MODEL) -> list[np.ndarray]:
         """The same in image pixels (the metric ones drawn through the grid, when there are some)."""

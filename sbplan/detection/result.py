@@ -77,6 +77,8 @@ class Detection:
                 "origin_m": list(cal.workspace.origin),
                 "robot_radius_m": cal.workspace.robot_radius_m,
                 "frame": "metres; x right along the columns, y up toward row 0",
+                "georeference": (cal.workspace.georeference.to_json()
+                                 if cal.workspace.georeference is not None else None),
             },
             "camera": self.camera.to_json(),
             "stages": dict(self.stages),

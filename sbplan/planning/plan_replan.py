@@ -166,7 +166,7 @@ def replan(route: Route, position: Any, new_obstacles: Any, *, planner: str | Pl
     The route's map is copied and updated incrementally. If no new obstacle (enlarged by the
     clearance) touches the remaining route, the remaining route is returned with
     ``replanned=False``; otherwise the route from ``position`` to the route's goal is planned on
-    the updated map.
+    the updated map, and has ``replanned=True``.
 
     Parameters
     ----------
@@ -202,10 +202,11 @@ def replan(route: Route, position: Any, new_obstacles: Any, *, planner: str | Pl
     line = LineString(remaining) if len(remaining) >= 2 else Point(p)
     touched = any(shapely.relate_pattern(line, q, "T********") or q.contains(Point(p)) for q in big)
     if not touched:
-        return Route(remaining, status=route.status, planner=route.planner, time=time.perf_counter() - t0,
+        return Route(remaining, status=route.status, planner=route.planner, time_s=time.perf_counter() - t0,
                      replanned=False, map=pm, goal=route.goal)
     if route.goal is None:  # only an empty route has none, and an empty route touches nothing
         raise InputError("route: has no goal to replan to")
     out = call_stage(stage, "solve", Problem(pm, p, route.goal), time_limit=tl, returns=route_problem)
-    out.time = time.perf_counter() - t0
+    out.time_s = time.perf_counter() - t0
+    out.replanned = True
     return out

@@ -9,6 +9,7 @@ paper's a-priori 0.5.
 
 from __future__ import annotations
 
+import logging
 import os
 from dataclasses import replace
 from typing import Any, Unpack, cast
@@ -31,6 +32,8 @@ from .file import SYMBOL_WINDOW, Calibration
 from ..working import WorkScale, work_factor
 from .shapes import Shapes, extract_shapes
 from .threshold import match_threshold
+
+log = logging.getLogger(__name__)
 
 #: The stages used when none is named: the fast ones (the paper's OKE and KKA are selectable).
 DEFAULT_STAGES = {
@@ -94,6 +97,7 @@ def update_calibration(calibration: Calibration, frame: ImageInput,
     updated = calibration.moved(motion.matrix)
     stats = dict(updated.stats)
     stats["updates"] = [*stats.get("updates", []), {**motion.to_json(), "symbols_found": cells.symbols_found}]
+    log.info("calibration re-anchored, %s", motion.summary(), extra={"data": {"camera": motion.to_json()}})
     return replace(updated, stats=stats), motion
 
 
@@ -206,6 +210,10 @@ def calibrate(reference: ImageInput, *, symbol: ImageInput | None = None,
         "other_distance_min": float(np.delete(dist, members).min()) if len(others) else None,
         "rejected_centres_px": np.round(shapes.centres[others][:500], 2).tolist(),
     }
+    log.info("calibrated: grid %d x %d, threshold %.4f, margin %.1fx (%s)", grid.cols, grid.rows, threshold,
+             margin, ", ".join(f"{k} {v.name}" for k, v in chosen.items()),
+             extra={"data": {"grid": [grid.rows, grid.cols], "threshold": threshold, "margin": margin,
+                             "stages": {k: v.name for k, v in chosen.items()}}})
     return Calibration(
         image_shape=(h, w),
         stages={k: _stage_spec(v) for k, v in chosen.items()},

@@ -228,7 +228,7 @@ class RouteScreen(JobScreen):
             self._cursor_info()
             return
         r = s.route
-        t = "··· ms" if self.app.hide_timings else f"{r.time * 1e3:.1f} ms"
+        t = "··· ms" if self.app.hide_timings else f"{r.time_s * 1e3:.1f} ms"
         lines = [f"length      {r.length:.2f} m", f"time        {t}", f"status      {r.status}",
                  f"planner     {r.planner}", f"obstacles   {s.obstacle_model} (m)", f"waypoints   {len(r.waypoints)}",
                  f"robot at    {s.robot_fraction:.0%} of route"]
