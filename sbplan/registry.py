@@ -2,7 +2,7 @@
 
 ``sbplan.registry.matcher("fourier")`` returns a ready instance of the matcher registered as
 ``fourier``; ``matcher_names()`` lists the installed names. The same pair exists for every kind:
-``binarizer``, ``extractor``, ``approximator``, ``matcher``, ``mapper``, ``planner``.
+``binarizer``, ``extractor``, ``approximator``, ``matcher``, ``mapper``, ``footprint``, ``planner``.
 
 Plugins are found through the ``sbplan`` entry-point group, built-in ones included. A plugin that
 fails to import is recorded in :func:`load_errors` (and shown by ``sbplan plugins``) and the others
@@ -246,4 +246,5 @@ extractor, extractor_names = _lookup_pair("extractor")
 approximator, approximator_names = _lookup_pair("approximator")
 matcher, matcher_names = _lookup_pair("matcher")
 mapper, mapper_names = _lookup_pair("mapper")
+footprint, footprint_names = _lookup_pair("footprint")
 planner, planner_names = _lookup_pair("planner")

@@ -172,6 +172,12 @@ class Workspace:
         ox, oy = self.origin
         return np.column_stack([ox + cr[:, 0] * self.pitch_m[0], oy + (rows - 1 - cr[:, 1]) * self.pitch_m[1]])
 
+    def world_to_lattice(self, xy: np.ndarray, rows: int) -> np.ndarray:
+        """The inverse of :meth:`lattice_to_world`: world ``(x, y)`` metres (N, 2) -> lattice ``(col, row)``."""
+        p = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        ox, oy = self.origin
+        return np.column_stack([(p[:, 0] - ox) / self.pitch_m[0], rows - 1 - (p[:, 1] - oy) / self.pitch_m[1]])
+
     def to_json(self) -> dict:
         return {"pitch_m": list(self.pitch_m), "origin_m": list(self.origin), "robot_radius_m": self.robot_radius_m,
                 "start_m": list(self.start_m) if self.start_m else None,

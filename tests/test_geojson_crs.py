@@ -76,7 +76,7 @@ def _rings(data):
 
 def test_georeferenced_geojson_is_rfc7946_lon_lat():
     _, det, _ = paper()
-    data = exports.geojson(georeferenced(det))
+    data = exports.geojson(georeferenced(det), "mar")
     assert data["sbplan"]["crs"] == "WGS84" and data["sbplan"]["georeference"] == BERLIN.to_json()
     assert len(data["features"]) == 2 * len(det.obstacles) == 6
     for kind, ring in _rings(data):
@@ -94,7 +94,7 @@ def test_georeferenced_geojson_is_rfc7946_lon_lat():
 
 def test_without_a_georeference_geojson_says_it_is_local_metres():
     _, det, _ = paper()
-    data = exports.geojson(det)
+    data = exports.geojson(det, "mar")
     assert data["sbplan"]["crs"] == "local" and "georeference" not in data["sbplan"]
     assert "metres" in data["sbplan"]["coordinates"]
     ring = next(r for k, r in _rings(data) if k == "mar")

@@ -22,8 +22,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="folder for the calibration, result, pictures and maps (default: out/<map name>); "
                              "replaced as a whole, so it must be new or hold only a previous demo's files")
     parser.add_argument("--planner", default="aux-corner", help="planner stage (default: %(default)s)")
+    from ._stage_options import add_obstacle_model_argument
     from .detect import add_georef_argument
 
+    add_obstacle_model_argument(parser, what="(planner, overlay, GeoJSON, nav2)")
     add_georef_argument(parser)
 
 
@@ -32,13 +34,17 @@ DEMO_FILES = ("calibration.json", "result.json", "overlay.png", "occupancy.png",
               "route.json")
 
 
-def demo_files(calibration, image, detection, route=None) -> dict[str, bytes | str]:
+def demo_files(calibration, image, detection, route=None, model: str | None = None) -> dict[str, bytes | str]:
     """The demo's output folder as ``{relative path: content}``: calibration, result, pictures,
-    GeoJSON, nav2 map and (when planned) the route, written as one unit by :func:`run`."""
+    GeoJSON, nav2 map and (when planned) the route, written as one unit by :func:`run`. The
+    overlay, the GeoJSON and the nav2 map show the obstacle model ``model`` (default ``parts``)."""
     import json
 
     from ..detection import exports
     from ..files import json_default
+    from ..detection.obstacles import DEFAULT_OBSTACLE_MODEL
+
+    model = model or DEFAULT_OBSTACLE_MODEL
 
     def as_json(obj) -> str:
         return json.dumps(obj, indent=2, default=json_default) + "\n"
@@ -47,10 +53,10 @@ def demo_files(calibration, image, detection, route=None) -> dict[str, bytes | s
         "calibration.json": as_json(calibration.to_json()),
         "result.json": as_json(detection.to_json()),
         # the pictures say in their metadata that they are camera pixels: plan refuses them as maps
-        "overlay.png": exports.encode_overlay("overlay.png", image, detection),
+        "overlay.png": exports.encode_overlay("overlay.png", image, detection, model),
         "occupancy.png": exports.encode_occupancy("occupancy.png", detection),
-        "obstacles.geojson": json.dumps(exports.geojson(detection), indent=1) + "\n",
-        **{f"nav2/{name}": data for name, data in exports.nav2_files(detection).items()},
+        "obstacles.geojson": json.dumps(exports.geojson(detection, model), indent=1) + "\n",
+        **{f"nav2/{name}": data for name, data in exports.nav2_files(detection, model=model).items()},
     }
     if route is not None:
         files["route.json"] = as_json(route.to_dict())
@@ -95,14 +101,16 @@ def run(args: argparse.Namespace) -> int:
         from ..planning.ompl_planners import quiet
 
         quiet(bool(getattr(args, "verbose", False)))  # OMPL's log only with -v
-        obstacles = detection_obstacles(detection)
+        # the detection's obstacles under the obstacle model, on its floor
+        obstacles = detection_obstacles(detection, use=args.obstacle_model)
         route = plan(obstacles.polygons, ws.start_m, ws.goal_m, robot_radius=ws.robot_radius_m,
                      planner=args.planner, bounds=obstacles.bounds)
         pts = " -> ".join(f"({x:.2f}, {y:.2f})" for x, y in route.waypoints)
-        print(f"route ({route.planner}, {route.status}): {route.length:.3f} m in {route.time_s * 1e3:.2f} ms")
+        print(f"route ({route.planner}, {route.status}, obstacles as {args.obstacle_model}): {route.length:.3f} m "
+              f"in {route.time_s * 1e3:.2f} ms")
         print(f"  {pts}")
     # every file of the run goes into the folder at once: a reader never sees one run's result
     # beside another run's GeoJSON (sbplan.files.write_file_set)
-    write_file_set(out, demo_files(cal, image, detection, route), names=DEMO_FILES)
+    write_file_set(out, demo_files(cal, image, detection, route, args.obstacle_model), names=DEMO_FILES)
     print(f"wrote {out}/: calibration.json, result.json, overlay.png, occupancy.png, obstacles.geojson, nav2/")
     return 0

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from ._stage_options import add_stage_arguments, stage_choices
+from ._stage_options import add_obstacle_model_argument, add_stage_arguments, stage_choices
 
 HELP = "detect occupied cells and obstacles in a scene image"
 DESCRIPTION = (
@@ -39,7 +39,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("-c", "--calibration", required=True, help="calibration file from 'sbplan calibrate'")
     parser.add_argument("--json", action="store_true", help="print the result as one JSON object")
     parser.add_argument("-o", "--output", metavar="JSON", help="write the JSON result to this file")
-    parser.add_argument("--overlay", metavar="PNG", help="write the scene with cells, MARs and numbered obstacles")
+    parser.add_argument("--overlay", metavar="PNG",
+                        help="write the scene with cells, footprints, what the planner avoids and numbered obstacles")
     parser.add_argument("--occupancy", metavar="PNG", help="write the occupancy image (paper figure 14)")
     parser.add_argument("--geojson", metavar="FILE",
                         help="write the obstacles as GeoJSON: RFC 7946 WGS84 longitude/latitude when the floor is "
@@ -50,6 +51,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="write a ROS 2 nav2 map (map.yaml + map.pgm) into DIR: the floor's local frame, "
                              "metres, origin = the map's bottom-left corner")
     parser.add_argument("--nav2-resolution", type=float, metavar="M", help="nav2 map metres per pixel")
+    add_obstacle_model_argument(parser, what="in the overlay, GeoJSON and nav2 map")
     add_stage_arguments(parser)
 
 
@@ -68,8 +70,10 @@ def summary_lines(detection) -> list[str]:
         lines.insert(0, detection.camera.summary())
     for ob in detection.obstacles:
         j = ob.to_json()
+        parts = f", {len(ob.parts_m)} parts" if ob.parts_m is not None and len(ob.parts_m) > 1 else ""
         lines.append(f"  #{ob.id}: {len(ob.cells)} cells, MAR {j['size_m'][0]:.2f} x {j['size_m'][1]:.2f} m "
-                     f"at ({j['centre_m'][0]:.2f}, {j['centre_m'][1]:.2f}) m, angle {axis_angle(j['angle_m_deg'], 1):.1f} deg")
+                     f"at ({j['centre_m'][0]:.2f}, {j['centre_m'][1]:.2f}) m, angle {axis_angle(j['angle_m_deg'], 1):.1f} deg"
+                     f"{parts}")
     stages = ", ".join(f"{k}={v}" for k, v in detection.stages.items())
     lines.append(f"stages: {stages}; {detection.timings_ms['total']:.1f} ms")
     return lines
@@ -96,14 +100,15 @@ def run(args: argparse.Namespace) -> int:
     result = detection.to_json()
     if args.output:
         write_json(args.output, result)
+    model = args.obstacle_model
     if args.overlay:
-        exports.write_overlay(args.overlay, image, detection)
+        exports.write_overlay(args.overlay, image, detection, model)
     if args.occupancy:
         exports.write_occupancy(args.occupancy, detection)
     if args.geojson:
-        exports.write_geojson(args.geojson, detection)
+        exports.write_geojson(args.geojson, detection, model)
     if args.nav2:
-        exports.write_nav2(args.nav2, detection, resolution=args.nav2_resolution)
+        exports.write_nav2(args.nav2, detection, resolution=args.nav2_resolution, model=model)
     if args.json:
         print(json.dumps(result))
     else:

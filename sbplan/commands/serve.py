@@ -32,8 +32,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--interval", type=float, default=0.0, metavar="S",
                         help="seconds between two frames of --source (default 0: as fast as detection)")
     parser.add_argument("--token", help=f"bearer token clients must send (default: ${TOKEN_ENV}); required with a non-loopback --host")
-    parser.add_argument("--use", choices=("mar", "outline"), default="mar",
-                        help="plan around the obstacles' minimum-area rectangles (default) or outlines")
+    from ._stage_options import add_obstacle_model_argument
+
+    add_obstacle_model_argument(parser, what="(routes, GeoJSON, nav2)")
+    # the option's old name, kept for scripts
+    parser.add_argument("--use", choices=("mar", "parts", "outline"), default=None, help=argparse.SUPPRESS)
     parser.add_argument("--planner", default="aux-corner", help="planner stage for routes (default aux-corner)")
     parser.add_argument("--time-limit", type=float, default=1.0, metavar="S", help="seconds per planning query (default 1)")
     parser.add_argument("--max-routes", type=int, default=256, metavar="N",
@@ -74,7 +77,7 @@ def run(args: argparse.Namespace) -> int:
 
     calibration = with_georeference(load_calibration(args.calibration), args.georef)
     source = open_source(args.source, interval=args.interval) if args.source else None
-    service = Service(calibration, use=args.use, planner=args.planner, time_limit=args.time_limit,
+    service = Service(calibration, use=args.use or args.obstacle_model, planner=args.planner, time_limit=args.time_limit,
                       max_routes=args.max_routes,
                       limits=Limits(max_body=int(args.max_body_mb * 2**20), max_pixels=args.max_pixels))
     try:

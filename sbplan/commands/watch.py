@@ -58,6 +58,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "to be detected again (default 10)")
     parser.add_argument("--camera-tolerance", type=float, default=1.0, metavar="PX",
                         help="report a camera movement beyond this many pixels (default 1)")
+    from ._stage_options import add_obstacle_model_argument
+
+    add_obstacle_model_argument(parser, what="for the route")
     add_stage_arguments(parser)
 
 
@@ -74,7 +77,8 @@ def run(args: argparse.Namespace) -> int:
                       backoff=args.backoff, max_reopen=args.max_reopen, start=args.start, goal=args.goal,
                       robot_radius=args.robot_radius, skip_unchanged=not args.every_frame,
                       change_threshold=args.change_threshold, camera_tolerance_px=args.camera_tolerance,
-                      max_frames=args.max_frames, stats_interval=args.stats, **stage_choices(args))
+                      max_frames=args.max_frames, stats_interval=args.stats, obstacle_model=args.obstacle_model,
+                      **stage_choices(args))
     out: TextIO = open(args.events, "a", encoding="utf-8") if args.events else sys.stdout
     previous: dict[int, SignalHandler] = {}
 

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .calibration.file import Calibration
-from .obstacles import Obstacle
+from .obstacles import DEFAULT_OBSTACLE_MODEL, Obstacle, check_obstacle_model
 from .registration import CameraMotion
 
 FORMAT = "sbplan.detection/1"
@@ -26,7 +26,7 @@ class Detection:
         The occupancy image (0 occupied, 255 free), paper figure 14.
     obstacles : list of Obstacle
     timings_ms : dict
-        Milliseconds per stage, in pipeline order (``map`` and ``obstacles`` after
+        Milliseconds per stage, in pipeline order (``map``, ``footprint`` and ``obstacles`` after
         :class:`CellDetection`'s), and "total".
     stages : dict
         kind -> stage name used.
@@ -51,6 +51,13 @@ class Detection:
     @property
     def symbols_expected(self) -> int:
         return self.calibration.symbols_expected
+
+    def planner_obstacles(self, model: str = DEFAULT_OBSTACLE_MODEL) -> list[np.ndarray]:
+        """What the planner avoids under the obstacle model ``model`` (``mar``, ``parts`` or
+        ``outline``; see :mod:`sbplan.detection.obstacles`): polygons (K, 2) in world metres, the
+        obstacles' in their order."""
+        check_obstacle_model(model)
+        return [p for ob in self.obstacles for p in ob.polygons_m(model)]
 
     def to_json(self) -> dict:
         cal = self.calibration

@@ -21,8 +21,9 @@ import numpy as np
 
 from ..detection import Detector
 from ..detection.calibration import Calibration, load_calibration
-from ..detection.obstacles import find_obstacles
+from ..detection.obstacles import DEFAULT_OBSTACLE_MODEL, check_obstacle_model
 from ..detection.registration import apply
+from ..imageio import as_gray
 from ..errors import CameraMotionError, DetectionError, InputError, PlanningError, SbplanError
 from ..planning import plan, replan
 from .reader import Frame, FrameReader, Notice
@@ -169,6 +170,8 @@ class Watcher:
         Stop after this many frames processed (reason ``limit``).
     stats_interval : float, optional
         Seconds between ``stats`` events (None: none).
+    obstacle_model : "mar" | "parts" | "outline", optional
+        What the route is planned around (default ``parts``, :mod:`sbplan.detection.obstacles`).
     keep_image : bool
         Keep the last frame in :attr:`state` (for a display).
     **stages
@@ -180,7 +183,7 @@ class Watcher:
                  latest: bool | None = None, start: Any = None, goal: Any = None, robot_radius: float | None = None,
                  skip_unchanged: bool = True, change_threshold: float = 10.0, camera_tolerance_px: float = 1.0,
                  max_frames: int | None = None, stats_interval: float | None = None, keep_image: bool = False,
-                 fps: float | None = None, **stages: Any):
+                 fps: float | None = None, obstacle_model: str | None = None, **stages: Any):
         if not isinstance(hysteresis, Hysteresis):
             hysteresis = Hysteresis.parse(hysteresis)
         for name, v, low in (("stall_timeout", stall_timeout, 0.0), ("change_threshold", change_threshold, 0.0),
@@ -193,6 +196,8 @@ class Watcher:
             raise InputError(f"max_reopen: expected an integer >= 1, got {max_reopen!r}")
         if stats_interval is not None and not (isinstance(stats_interval, (int, float)) and stats_interval > 0):
             raise InputError(f"stats_interval: expected a number of seconds > 0, got {stats_interval!r}")
+
+        self.obstacle_model = check_obstacle_model(obstacle_model or DEFAULT_OBSTACLE_MODEL)
         self.calibration = cal = calibration if isinstance(calibration, Calibration) else load_calibration(calibration)
         self.start, self.goal = _point(start, "start"), _point(goal, "goal")
         if (self.start is None) != (self.goal is None):
@@ -447,7 +452,8 @@ class Watcher:
         if flipped.any():
             stable = self.cells.stable
             occupancy = self.detector.mapper.occupancy_image(cal.grid, stable, tuple(cal.image_shape))
-            found_obs = find_obstacles(occupancy, stable, cal.grid, to_world=cal.pixels_to_world)
+            # each obstacle's outline by the detector's footprint stage, on the frame the cells flipped on
+            found_obs = self.detector.obstacles(as_gray(image), stable, occupancy, motion)
             _, changes = self.tracker.update(found_obs)
             for ch in changes:
                 fields: dict[str, Any] = {"obstacle": ch.obstacle.to_json()}
@@ -494,7 +500,8 @@ class Watcher:
     # -- the route ---------------------------------------------------------------------------------
     def _plan(self, frame: Frame, changes: list[Change], forced: bool) -> Event | None:
         """Plan or replan after ``changes``; the route event, or None when the route stays."""
-        obstacles = [o.mar_m for o in self.tracker.obstacles]
+        model = self.obstacle_model
+        obstacles = [p for o in self.tracker.obstacles for p in o.polygons_m(model)]
         appeared_only = changes and all(c.kind == "appeared" for c in changes)
         # only new obstacles: the route is updated from its map, not planned anew
         base = self._route if appeared_only and not forced else None
@@ -502,7 +509,7 @@ class Watcher:
         t0 = time.perf_counter()
         try:
             if base is not None:
-                new = [c.obstacle.mar_m for c in changes]
+                new = [p for c in changes for p in c.obstacle.polygons_m(model)]
                 route = replan(base, self.start, new)
             else:
                 route = plan(obstacles, self.start, self.goal, robot_radius=self.robot_radius, bounds=self.bounds)

@@ -38,8 +38,8 @@ class ObstacleSet:
     source: str = ""
 
 
-def load_obstacles(path: Any, *, resolution: float | None = None, use: str = "mar",
-                   image_anywhere: bool = False) -> ObstacleSet:
+def load_obstacles(path: Any, *, resolution: float | None = None, use: str | None = None,
+                   obstacle_model: str | None = None, image_anywhere: bool = False) -> ObstacleSet:
     """Load obstacles from a file, by its type.
 
     Parameters
@@ -56,8 +56,11 @@ def load_obstacles(path: Any, *, resolution: float | None = None, use: str = "ma
     resolution : float, optional
         Metres per pixel for a plain image (default 1: pixel units). Origin at the image's
         bottom-left corner, y up (nav2's frame).
-    use : "mar" | "outline"
-        Which polygon of a detection to plan around.
+    obstacle_model : "mar" | "parts" | "outline"
+        What of a detection result to plan around (:mod:`sbplan.detection.obstacles`); default
+        ``parts``. A GeoJSON file says which model it was written with (default: its MARs).
+    use : str
+        The old name of ``obstacle_model``.
     image_anywhere : bool
         A nav2 map.yaml's ``image:`` may name a file outside the YAML's folder (by default it must
         lie inside it: a map file is data, not a key to the file system).
@@ -73,6 +76,17 @@ def load_obstacles(path: Any, *, resolution: float | None = None, use: str = "ma
                                        and resolution > 0):
         raise InputError(f"resolution (--resolution): must be a positive number of metres per pixel, "
                          f"got {resolution!r}")
+    # -- obstacle models (issue 15): one name everywhere; `use` is its old name --
+    from ..detection.obstacles import DEFAULT_OBSTACLE_MODEL, check_obstacle_model
+
+    if use is not None and obstacle_model is not None and use != obstacle_model:
+        raise MapFormatError(f"use: {use!r} contradicts obstacle_model {obstacle_model!r}")
+    model = obstacle_model or use or DEFAULT_OBSTACLE_MODEL
+    try:
+        check_obstacle_model(model)
+    except InputError as exc:
+        raise MapFormatError(str(exc)) from None
+    explicit = (obstacle_model or use) is not None
     p = Path(path)
     if not p.exists():
         raise MapFormatError(f"{p}: no such file")
@@ -89,9 +103,9 @@ def load_obstacles(path: Any, *, resolution: float | None = None, use: str = "ma
         except RecursionError:
             raise MapFormatError(f"{p}: not an obstacle file (nested too deeply)") from None
         if isinstance(data, dict) and data.get("type") == "FeatureCollection":
-            return _from_geojson(data, str(p))
+            return _from_geojson(data, str(p), model if explicit else None)
         if isinstance(data, dict) and str(data.get("format", "")).startswith("sbplan.detection"):
-            return detection_obstacles(data, use=use, source=str(p))
+            return detection_obstacles(data, use=model, source=str(p))
         raise MapFormatError(f"{p}: neither a GeoJSON FeatureCollection nor an sbplan detection result")
     if ext in (".yaml", ".yml"):
         return _from_nav2(p, image_anywhere=image_anywhere)
@@ -146,7 +160,7 @@ def _poly(coords: Any, where: str) -> Polygon:
     return Polygon(a)
 
 
-def detection_obstacles(detection: Detection | dict[str, Any], *, use: str = "mar", source: str = "") -> ObstacleSet:
+def detection_obstacles(detection: Detection | dict[str, Any], *, use: str | None = None, source: str = "") -> ObstacleSet:
     """The obstacles of a detection result, as the planner takes them: the one place that says
     which polygons of a detection are obstacles (``sbplan demo``, the TUI and
     :func:`load_obstacles` all come here).
@@ -156,8 +170,10 @@ def detection_obstacles(detection: Detection | dict[str, Any], *, use: str = "ma
     detection : Detection or dict
         A :class:`sbplan.Detection`, or its JSON form (``Detection.to_json()``, the content of a
         ``result.json``, whose coordinates are rounded to 1e-6 m).
-    use : "mar" | "outline"
-        Each obstacle's minimum-area rectangle (``mar_m``) or its outline (``outline_m``).
+    use : "mar" | "parts" | "outline"
+        The obstacle model (:mod:`sbplan.detection.obstacles`): each obstacle's minimum-area
+        rectangle (``mar_m``), the rectangles of its parts (``parts_m``, the default) or its
+        outline (``outline_m``).
     source : str
         Where the detection came from, for messages and ``ObstacleSet.source``.
 
@@ -166,35 +182,41 @@ def detection_obstacles(detection: Detection | dict[str, Any], *, use: str = "ma
     ObstacleSet
         The polygons in metres (world frame, y up) and the bounds of the calibrated grid.
     """
-    if use not in ("mar", "outline"):
-        raise MapFormatError(f"use: expected 'mar' or 'outline', got {use!r}")
-    key = "mar_m" if use == "mar" else "outline_m"
+    from ..detection.obstacles import DEFAULT_OBSTACLE_MODEL, OBSTACLE_MODELS, json_polygons_m
+
+    use = DEFAULT_OBSTACLE_MODEL if use is None else use
+    if use not in OBSTACLE_MODELS:
+        raise MapFormatError(f"use: expected one of {', '.join(OBSTACLE_MODELS)}, got {use!r}")
     src = source or "detection"
     if not isinstance(detection, dict):
         obstacles = getattr(detection, "obstacles", None)
         calibration = getattr(detection, "calibration", None)
-        if obstacles is None or calibration is None:
+        if obstacles is None or calibration is None or not hasattr(detection, "planner_obstacles"):
             raise InputError(f"detection: expected a Detection or its JSON, got {type(detection).__name__}")
-        polys = []
-        for i, ob in enumerate(obstacles):
-            pts = getattr(ob, key, None)
-            if pts is None:
-                raise InputError(f"{src}: obstacles[{i}] has no {key} (no world frame)")
-            polys.append(Polygon(pts))
+        try:
+            polys = [Polygon(p) for p in detection.planner_obstacles(use)]
+        except InputError as exc:
+            raise InputError(f"{src}: {exc}") from None
         return ObstacleSet(polys, tuple(float(v) for v in calibration.world_bounds()), source)
     obs = detection.get("obstacles")
     if not isinstance(obs, list):
         raise MapFormatError(f"{src}: 'obstacles' must be a list")
     polys = []
     for i, ob in enumerate(obs):
-        if not isinstance(ob, dict) or key not in ob:
-            raise MapFormatError(f"{src}: obstacles[{i}] has no {key!r}")
-        polys.append(_poly(ob[key], f"{src}: obstacles[{i}].{key}"))
+        try:
+            rings = json_polygons_m(ob, use)
+        except (KeyError, TypeError):
+            key = {"mar": "'mar_m'", "parts": "'parts_m' (nor 'outline_m' to cut parts from)",
+                   "outline": "'outline_m'"}[use]
+            raise MapFormatError(f"{src}: obstacles[{i}] has no {key}") from None
+        except (ValueError, InputError) as exc:
+            raise MapFormatError(f"{src}: obstacles[{i}]: {exc}") from None
+        polys += [_poly(r, f"{src}: obstacles[{i}] ({use})") for r in rings]
     ws = detection.get("workspace") or {}
     return ObstacleSet(polys, _bounds(ws.get("bounds_m") if isinstance(ws, dict) else None, src), source)
 
 
-def _from_geojson(data: dict, src: str) -> ObstacleSet:
+def _from_geojson(data: dict, src: str, model: str | None = None) -> ObstacleSet:
     feats = data.get("features")
     if not isinstance(feats, list):
         raise MapFormatError(f"{src}: 'features' must be a list")
@@ -220,12 +242,22 @@ def _from_geojson(data: dict, src: str) -> ObstacleSet:
             shell = _poly(rings[0], f"{src}: features[{i}]")
             holes = [_poly(r, f"{src}: features[{i}] hole").exterior.coords for r in rings[1:]]
             items.append((kind, Polygon(shell.exterior.coords, holes)))
+    found = data.get("sbplan")
+    meta: dict = found if isinstance(found, dict) else {}
+    # the features of the obstacle model asked for, else of the one the file was written with
+    # (files written before the models: their MARs)
+    from ..detection.exports import GEOJSON_KINDS
+
+    asked = model
+    model = model or meta.get("obstacle_model") or "mar"
+    want = GEOJSON_KINDS.get(model, "mar")
     kinds = {k for k, _ in items if k is not None}
-    polys = [p for k, p in items if k == "mar"] if kinds else [p for _, p in items]
+    polys = [p for k, p in items if k == want] if kinds else [p for _, p in items]
     if kinds and not polys:
+        if asked is not None:
+            raise MapFormatError(f"{src}: no {want!r} features for the {asked!r} obstacle model "
+                                 f"(the file holds {', '.join(sorted(kinds))})")
         polys = [p for _, p in items]
-    meta = data.get("sbplan")
-    meta = meta if isinstance(meta, dict) else {}
     if meta.get("georeference") is not None:
         # WGS84 lon/lat written by sbplan detect on a georeferenced floor: back to the floor's metres
         geo = Georeference.from_json(meta["georeference"], where=f"{src}: sbplan.georeference")

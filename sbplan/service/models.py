@@ -147,8 +147,10 @@ class PolygonGeometry(BaseModel):
 
 class FeatureProperties(BaseModel):
     id: int
-    kind: Literal["outline", "mar"]
+    kind: Literal["outline", "mar", "part"] = Field(description="the footprint's outline, or what the planner "
+                                                                "avoids under the obstacle model: the MAR or a part")
     cells: list[Cell]
+    part: int | None = Field(default=None, description="the part's number (kind part)")
 
 
 class Feature(BaseModel):
@@ -165,12 +167,15 @@ class GeoJSONMeta(BaseModel):
     frame: str | None = Field(None, description="the local frame (crs local)")
     georeference: GeoreferenceModel | None = Field(None, description="where the floor is on the Earth (crs WGS84)")
     bounds_m: tuple[float, float, float, float] = Field(description="the floor, metres of the local frame")
+    obstacle_model: str | None = Field(default=None, description="mar, parts or outline: which features the "
+                                                                 "planner avoids")
 
 
 class FeatureCollection(BaseModel):
-    """GET /obstacles.geojson: each obstacle's outline and MAR (RFC 7946 with a foreign member
-    ``sbplan``; ``sbplan plan --obstacles`` reads it): WGS84 longitude/latitude when the
-    calibration's workspace is georeferenced, else the floor's local metres (``sbplan.crs``)."""
+    """GET /obstacles.geojson: each obstacle's outline and what the service plans around (its MAR or
+    its parts, the obstacle model) (RFC 7946 with a foreign member ``sbplan``; ``sbplan plan
+    --obstacles`` reads it): WGS84 longitude/latitude when the calibration's workspace is
+    georeferenced, else the floor's local metres (``sbplan.crs``)."""
 
     type: Literal["FeatureCollection"]
     features: list[Feature]

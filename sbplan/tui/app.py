@@ -34,6 +34,7 @@ ACTIONS = [
     ("Robot forward", "move the robot 5 % along the route", "route", "robot(1)"),
     ("Robot back", "move the robot 5 % back along the route", "route", "robot(-1)"),
     ("Clear dynamic obstacles", "forget the obstacles placed or reported since the detection", "route", "clear_dynamic"),
+    ("Obstacle model", "what stands for each obstacle: its MAR, rectangles of its parts, or its outline (CLI --obstacle-model)", "route", "obstacle_model"),
     ("Cancel running step", "stop waiting for the current step and discard its result", None, "cancel"),
 ]
 

@@ -49,10 +49,11 @@ def square(centre: Sequence[float] | np.ndarray, side: float) -> np.ndarray:
     return np.array([[x - h, y - h], [x + h, y - h], [x + h, y + h], [x - h, y + h]])
 
 
-def obstacle_arrays(detection: Detection) -> list[np.ndarray]:
-    """A detection's obstacles as the planner takes them (``detection_obstacles``), in its order,
-    as (M, 2) arrays ``(x, y)`` metres (what the map view draws)."""
-    return [np.asarray(p.exterior.coords)[:-1] for p in detection_obstacles(detection).polygons]
+def obstacle_arrays(detection: Detection, model: str | None = None) -> list[np.ndarray]:
+    """A detection's obstacles as the planner takes them under the obstacle model ``model``
+    (``detection_obstacles``; default ``parts``), in its order, as (M, 2) arrays ``(x, y)`` metres
+    (what the map view draws)."""
+    return [np.asarray(p.exterior.coords)[:-1] for p in detection_obstacles(detection, use=model).polygons]
 
 
 def point_along(waypoints: np.ndarray, fraction: float) -> np.ndarray:
@@ -82,6 +83,9 @@ class Session:
     calibration, detection : Calibration, Detection or None
     start, goal : (x, y) metres or None
     planner : str
+    obstacle_model : str
+        What stands for each detected obstacle when planning: ``mar``, ``parts`` (the default) or
+        ``outline`` (:mod:`sbplan.detection.obstacles`), the names the CLI's ``--obstacle-model`` takes.
     route, old_route : Route or None
         The current route and, after a replan, the one it replaced.
     dynamic : list of ndarray (4, 2)
@@ -100,6 +104,7 @@ class Session:
     start: tuple[float, float] | None = None
     goal: tuple[float, float] | None = None
     planner: str = "aux-corner"
+    obstacle_model: str = "parts"
     route: Route | None = None
     old_route: Route | None = None
     dynamic: list[np.ndarray] = field(default_factory=list)
@@ -147,7 +152,7 @@ class Session:
                 raise MapFormatError(f"{path}: not a map folder (no reference.png)")
             fresh = Session.from_map(p)
             image = load_image(p / "reference.png")  # (fresh.reference_path)
-            fresh.planner = self.planner
+            fresh.planner, fresh.obstacle_model = self.planner, self.obstacle_model
             self.__dict__.update(fresh.__dict__)
             self.reference = image
             return image
@@ -189,8 +194,19 @@ class Session:
         return Detector(cal)(image)
 
     def obstacles_m(self) -> list[np.ndarray]:
-        """The detection's obstacles in metres, (M, 2) ``(x, y)`` each (what the planner avoids)."""
-        return [] if self.detection is None else obstacle_arrays(self.detection)
+        """The detection's obstacles in metres under the obstacle model, (M, 2) ``(x, y)`` each (what
+        the planner avoids)."""
+        return [] if self.detection is None else obstacle_arrays(self.detection, self.obstacle_model)
+
+    def clearance_m(self) -> list[np.ndarray]:
+        """The planner's clearance around :meth:`obstacles_m` (enlarged by the robot radius, clipped
+        to the floor), as outer rings in metres: what the map draws around the obstacles."""
+        from ..detection.exports import planner_view
+
+        if self.detection is None:
+            return []
+        _, zones = planner_view(self.detection, self.obstacle_model)
+        return [np.asarray(z.exterior.coords) for z in zones]
 
     def plan(self) -> Route:
         """Plan from start to goal around the detected obstacles and the dynamic ones."""
@@ -212,6 +228,8 @@ class Session:
         return replan(self.route, self.robot_position(), new_obstacles)
 
     def new_obstacles_in(self, detection: Detection) -> list[np.ndarray]:
-        """The MARs of ``detection``'s obstacles that cover a cell the current detection left free."""
+        """The polygons (under the obstacle model) of ``detection``'s obstacles that cover a cell the
+        current detection left free."""
         known = set(self.detection.occupied_cells) if self.detection is not None else set()
-        return [a for ob, a in zip(detection.obstacles, obstacle_arrays(detection)) if set(map(tuple, ob.cells)) - known]
+        return [np.asarray(p) for ob in detection.obstacles if set(map(tuple, ob.cells)) - known
+                for p in ob.polygons_m(self.obstacle_model)]

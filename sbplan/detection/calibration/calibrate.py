@@ -18,7 +18,8 @@ import cv2
 import numpy as np
 
 from ... import limits, registry
-from ...contracts import (Binarizer, ContourApproximator, ContourExtractor, DescriptorMatcher, OccupancyMapper,
+from ...contracts import (Binarizer, ContourApproximator, ContourExtractor, DescriptorMatcher, FootprintRefiner,
+                          OccupancyMapper,
                           StageChoices, distances_between)
 from ...errors import CalibrationError, InputError
 from ...imageio import ImageInput, as_gray, load_image
@@ -41,6 +42,7 @@ DEFAULT_STAGES = {
     "approximator": "douglas-peucker",
     "matcher": "fourier",
     "mapper": "cells",
+    "footprint": "pixels",
 }
 
 
@@ -103,7 +105,8 @@ def calibrate(reference: ImageInput, *, symbol: ImageInput | None = None,
               workspace: Workspace | str | os.PathLike | None = None, cell_size: float | None = None,
               binarizer: str | Binarizer | None = None, extractor: str | ContourExtractor | None = None,
               approximator: str | ContourApproximator | None = None, matcher: str | DescriptorMatcher | None = None,
-              mapper: str | OccupancyMapper | None = None) -> Calibration:
+              mapper: str | OccupancyMapper | None = None,
+              footprint: str | FootprintRefiner | None = None) -> Calibration:
     """Calibrate on an image of the empty floor.
 
     Parameters
@@ -117,7 +120,7 @@ def calibrate(reference: ImageInput, *, symbol: ImageInput | None = None,
         Grid pitch in metres, origin, robot radius, default route.
     cell_size : float, optional
         Grid pitch in metres (both directions) when no workspace is given; default 1.0.
-    binarizer, extractor, approximator, matcher, mapper : str or Stage, optional
+    binarizer, extractor, approximator, matcher, mapper, footprint : str or Stage, optional
         Stage names (or instances); defaults in :data:`DEFAULT_STAGES`.
 
     Raises
@@ -141,7 +144,7 @@ def calibrate(reference: ImageInput, *, symbol: ImageInput | None = None,
     reg = registry.registry()
     chosen = {kind: reg.create(kind, given if given is not None else DEFAULT_STAGES[kind])
               for kind, given in (("binarizer", binarizer), ("extractor", extractor), ("approximator", approximator),
-                                  ("matcher", matcher), ("mapper", mapper))}
+                                  ("matcher", matcher), ("mapper", mapper), ("footprint", footprint))}
     h, w = gray.shape
     points_range = (12, max(16, (h + w) // 2))
     matcher_stage = cast(DescriptorMatcher, chosen["matcher"])  # the registry made it for the kind "matcher"

@@ -109,10 +109,11 @@ class DetectionScreen(JobScreen):
         det, image = s.detection, s.scene
 
         def job():
-            exports.write_overlay(folder / "overlay.png", image, det)
+            model = s.obstacle_model  # what the planner gets, in every file
+            exports.write_overlay(folder / "overlay.png", image, det, model)
             exports.write_occupancy(folder / "occupancy.png", det)
-            exports.write_geojson(folder / "obstacles.geojson", det)
-            exports.write_nav2(folder / "nav2", det)
+            exports.write_geojson(folder / "obstacles.geojson", det, model)
+            exports.write_nav2(folder / "nav2", det, model=model)
             return folder
 
         self.start_job(f"exporting to {folder}", job,
@@ -135,7 +136,7 @@ class DetectionScreen(JobScreen):
             summary.update("not calibrated yet (screen 1)" if s.calibration is None else "no detection yet: press d")
             return
         assert s.scene is not None  # the detection was made on it
-        picture.show(overlay_image(s.scene, det))
+        picture.show(overlay_image(s.scene, det, s.obstacle_model))
         summary.update(
             f"symbols     {det.symbols_found} of {det.symbols_expected} found\n"
             f"occupied    {len(det.occupied_cells)} cells\n"

@@ -17,7 +17,7 @@ from ..widgets.mapview import MapView
 from ..widgets.path_input import PathInput
 from .base import JobScreen
 
-LEGEND = ("[#e04040]⣿ obstacles (MARs)[/]  [#b070ff]⣿ dynamic obstacles[/]  [#40e040]⠤ route[/]  "
+LEGEND = ("[#e04040]⣿ obstacles, ⠤ clearance (m: model)[/]  [#b070ff]⣿ dynamic obstacles[/]  [#40e040]⠤ route[/]  "
           "[#ffb000]⠔ old route[/]  [black on cyan]S[/] start [black on cyan]G[/] goal "
           "[black on cyan]R[/] robot  [black on white]+[/] cursor")
 
@@ -48,6 +48,7 @@ class RouteScreen(JobScreen):
         Binding("left_square_bracket", "robot(-1)", "Robot ←"),
         Binding("right_square_bracket", "robot(1)", "Robot →"),
         Binding("x", "clear_dynamic", "Clear", show=False),
+        Binding("m", "obstacle_model", "Model"),
     ]
 
     def compose(self) -> ComposeResult:
@@ -186,6 +187,18 @@ class RouteScreen(JobScreen):
 
         self.start_job(f"detecting on {path}", job, done)
 
+    def action_obstacle_model(self) -> None:
+        """Cycle the obstacle model (mar, parts, outline); a route planned on the old one is
+        planned again."""
+        from ...detection.obstacles import OBSTACLE_MODELS
+
+        s = self.session
+        s.obstacle_model = OBSTACLE_MODELS[(OBSTACLE_MODELS.index(s.obstacle_model) + 1) % len(OBSTACLE_MODELS)]
+        self.notify(f"obstacles as {s.obstacle_model}", title="route")
+        self._show()
+        if s.route is not None and not self.busy:
+            self.action_plan()
+
     def action_robot(self, step: int) -> None:
         s = self.session
         s.robot_fraction = float(np.clip(s.robot_fraction + 0.05 * step, 0.0, 1.0))
@@ -205,6 +218,7 @@ class RouteScreen(JobScreen):
             info.update("not calibrated yet (screen 1)")
             return
         view.draw(bounds=cal.world_bounds(), pitch=cal.workspace.pitch_m, obstacles=s.obstacles_m(),
+                  clearance=s.clearance_m(),
                   dynamic=s.dynamic, route=None if s.route is None else s.route.waypoints,
                   old_route=None if s.old_route is None else s.old_route.waypoints,
                   start=s.start, goal=s.goal, robot=s.robot_position())
@@ -216,7 +230,7 @@ class RouteScreen(JobScreen):
         r = s.route
         t = "··· ms" if self.app.hide_timings else f"{r.time_s * 1e3:.1f} ms"
         lines = [f"length      {r.length:.2f} m", f"time        {t}", f"status      {r.status}",
-                 f"planner     {r.planner}", f"waypoints   {len(r.waypoints)}",
+                 f"planner     {r.planner}", f"obstacles   {s.obstacle_model} (m)", f"waypoints   {len(r.waypoints)}",
                  f"robot at    {s.robot_fraction:.0%} of route"]
         if s.old_route is not None:
             lines.append(f"old route   {s.old_route.length:.2f} m")
