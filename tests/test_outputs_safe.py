@@ -2,7 +2,7 @@
 
 Special files are never replaced (a FIFO, a symbolic link and a device stand-in made in the test's
 own folder: nothing is written outside it), an output is never one of the command's inputs, the
-files that belong together (a nav2 map, the demo's folder) are written as one unit that survives
+files that belong together (a nav2 map, the demo's folder, rendered scenes) are written as one unit that survives
 kill -9 and concurrent writers, and every output error is one line.
 """
 
@@ -179,13 +179,26 @@ def _consistent(folder: Path, variants: list[dict]) -> int | None:
 # Python costs half a second, and a forked writer is killed by SIGKILL like any process.
 WRITERS = textwrap.dedent("""
     import os, pickle, sys
-    from sbplan.files import write_file_set
+    from sbplan.files import write_file_set, write_folder
     variants, folder, names = pickle.load(open(sys.argv[1], "rb"))
+
+    def filler(files):  # write_folder's way (synth's scenes, maps, sequences): files written into a folder
+        def fill(tmp):
+            for rel, content in files.items():
+                path = os.path.join(tmp, *rel.split("/"))
+                os.makedirs(os.path.dirname(path), exist_ok=True)
+                with open(path, "wb") as fh:
+                    fh.write(content.encode() if isinstance(content, str) else content)
+        return fill
 
     def writer(start, count):
         i = start
         while count is None or i - start < count:
-            write_file_set(folder, variants[i % len(variants)], names=names)
+            files = variants[i % len(variants)]
+            if (i // 2) % 2:
+                write_folder(folder, filler(files), names=names)
+            else:
+                write_file_set(folder, files, names=names)
             if i == start:  # one write(2) per line: writers share the pipe
                 os.write(1, f"ready {os.getpid()}\\n".encode())
             i += 1
