@@ -154,11 +154,13 @@ class Workspace:
         for key, v in (("origin.xy_m", self.origin_m), ("route.start_m", self.start_m), ("route.goal_m", self.goal_m)):
             if v is not None and (len(v) != 2 or not np.isfinite(v).all()):
                 raise MapFormatError(f"{key}: must be two finite numbers, got {v}")
-        for key, v in (("grid.pitch_m", self.pitch_m), ("robot.radius_m", (self.robot_radius_m,)),
-                       ("origin.xy_m", self.origin_m), ("route.start_m", self.start_m), ("route.goal_m", self.goal_m)):
-            if v is not None and np.abs(v).max() > MAX_METRES:
-                raise MapFormatError(f"{key}: {max(np.abs(v)):g} m is beyond the {MAX_METRES:g} m a floor's "
-                                     f"coordinates may reach, got {v}")
+        bounded: tuple[tuple[str, tuple[float, ...] | None], ...] = (
+            ("grid.pitch_m", self.pitch_m), ("robot.radius_m", (self.robot_radius_m,)),
+            ("origin.xy_m", self.origin_m), ("route.start_m", self.start_m), ("route.goal_m", self.goal_m))
+        for key, values in bounded:
+            if values is not None and np.abs(values).max() > MAX_METRES:
+                raise MapFormatError(f"{key}: {max(np.abs(values)):g} m is beyond the {MAX_METRES:g} m a floor's "
+                                     f"coordinates may reach, got {values}")
 
     @property
     def origin(self) -> tuple[float, float]:

@@ -306,7 +306,7 @@ def build_map(name: str, out: str | os.PathLike | None = None) -> Path:
     """
     rec = recipe(name)
     folder = Path(out) if out is not None else Path("maps") / name
-    files = {}
+    files: dict[str, bytes | str] = {}
     for fname, item in render_map(rec).items():
         if isinstance(item, np.ndarray):
             files[fname] = encode_image(fname, item)
