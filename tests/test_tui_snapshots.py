@@ -1,6 +1,8 @@
-"""Snapshots of every screen of ``sbplan tui`` on maps/paper-8x6 (pytest-textual-snapshot).
+"""Snapshots of every screen of ``sbplan tui`` on maps/paper-8x6 (pytest-textual-snapshot), at
+80 x 24 (the side panel under the picture, keys on two rows where one cannot hold them) and at
+140 x 45.
 
-Deterministic by construction: a fixed terminal size, half-block pictures (no terminal graphics),
+Deterministic by construction: fixed terminal sizes, half-block pictures (no terminal graphics),
 timings shown as ``···`` (hide_timings), paths relative to the checkout, no toasts. Update with
 ``python3 -m pytest tests/test_tui_snapshots.py --snapshot-update`` and look at the SVGs.
 """
@@ -19,7 +21,8 @@ from sbplan.tui.session import point_along  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 MAP = "maps/paper-8x6"
-SIZE = (160, 48)
+SIZES = [(80, 24), (140, 45)]
+by_size = pytest.mark.parametrize("size", SIZES, ids=[f"{w}x{h}" for w, h in SIZES])
 
 pytestmark = pytest.mark.skipif(not (REPO / MAP / "reference.png").is_file(), reason="maps/paper-8x6 not built")
 
@@ -49,44 +52,47 @@ async def quiet(pilot) -> None:
     await pilot.pause()
 
 
-def test_calibration_screen(snap_compare):
+async def detected(pilot) -> None:
+    """Calibrated on its own, then screen 2, which detects on its own on first show."""
+    await settle(pilot)
+    await pilot.press("2")
+    await settle(pilot)
+
+
+async def zoomed(pilot) -> None:
+    """The detection picture full screen, 1.5 x about the middle: obstacle numbers stay text."""
+    await detected(pilot)
+    await pilot.press("f")
+    await pilot.press("plus")
+
+
+async def replanned(pilot) -> None:
+    """Screen 3 plans on its own on first show; a dynamic obstacle ahead of the robot replans."""
+    await detected(pilot)
+    await pilot.press("3")
+    await settle(pilot)
+    app = pilot.app
+    view = app.screen.query_one("#map")
+    x, y = point_along(app.session.route.waypoints, 0.6)
+    view.set_cursor((round(x, 1), round(y, 1)))
+    await pilot.press("o")
+
+
+async def helped(pilot) -> None:
+    await quiet(pilot)  # the reference opens and calibrates on its own; its toast goes first
+    await pilot.press("f1")
+
+
+#: screen -> how to get there from start-up
+SCREENS = {"calibration": settle, "detection": detected, "detection-zoomed": zoomed,
+           "route-after-a-replan": replanned, "help": helped}
+
+
+@by_size
+@pytest.mark.parametrize("screen", SCREENS)
+def test_screen(snap_compare, screen, size):
     async def run_before(pilot):
-        await settle(pilot)  # the reference opens and calibrates on its own
+        await SCREENS[screen](pilot)
         await quiet(pilot)
 
-    assert snap_compare(make_app(), terminal_size=SIZE, run_before=run_before)
-
-
-def test_detection_screen(snap_compare):
-    async def run_before(pilot):
-        await settle(pilot)
-        await pilot.press("2")
-        await settle(pilot)  # detects on its own on first show
-        await quiet(pilot)
-
-    assert snap_compare(make_app(), terminal_size=SIZE, run_before=run_before)
-
-
-def test_route_screen_after_a_replan(snap_compare):
-    async def run_before(pilot):
-        await settle(pilot)
-        await pilot.press("2")
-        await settle(pilot)
-        await pilot.press("3")
-        await settle(pilot)  # plans on its own on first show
-        app = pilot.app
-        view = app.screen.query_one("#map")
-        x, y = point_along(app.session.route.waypoints, 0.6)
-        view.set_cursor((round(x, 1), round(y, 1)))
-        await pilot.press("o")
-        await quiet(pilot)
-
-    assert snap_compare(make_app(), terminal_size=SIZE, run_before=run_before)
-
-
-def test_help_screen(snap_compare):
-    async def run_before(pilot):
-        await settle(pilot)
-        await quiet(pilot)
-
-    assert snap_compare(make_app(), press=["f1"], terminal_size=SIZE, run_before=run_before)
+    assert snap_compare(make_app(), terminal_size=size, run_before=run_before)

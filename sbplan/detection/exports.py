@@ -23,12 +23,27 @@ from .result import Detection
 _RED, _GREEN, _YELLOW, _CYAN, _WHITE, _BLACK = (40, 40, 230), (60, 200, 60), (0, 220, 255), (230, 200, 0), (255, 255, 255), (0, 0, 0)
 
 
-def overlay_image(image: np.ndarray, detection: Detection) -> np.ndarray:
+def overlay_image(image: np.ndarray, detection: Detection, *, caption: bool = True) -> np.ndarray:
     """The scene with occupied cells shaded red, found symbols marked green, MARs in yellow and
-    obstacle numbers (as the paper's figure 12). Returns a BGR image (H, W, 3) uint8.
+    obstacle numbers (as the paper's figure 12).
 
     The detection's pixel coordinates are the calibration's; they are drawn where the camera's
-    movement (``detection.camera``) puts them in this frame."""
+    movement (``detection.camera``) puts them in this frame.
+
+    Parameters
+    ----------
+    image : ndarray (H, W) or (H, W, 3)
+        The frame the detection was made on.
+    detection : Detection
+    caption : bool
+        Add a caption band above the scene (symbols found, occupied cells, obstacles), so that
+        it hides none of the scene.
+
+    Returns
+    -------
+    ndarray of shape (H + band, W, 3), uint8, BGR
+        The scene's pixels are rows ``band:`` (``band`` is 0 without the caption).
+    """
     gray = as_gray(image)
     out = cv2.cvtColor(gray, cv2.COLOR_GRAY2BGR)
     grid = detection.calibration.grid
@@ -57,14 +72,17 @@ def overlay_image(image: np.ndarray, detection: Detection) -> np.ndarray:
         org = (int(cx - tw / 2), int(cy + tht / 2))
         cv2.putText(out, label, org, font, fs, _BLACK, th + 3 * scale, cv2.LINE_AA)
         cv2.putText(out, label, org, font, fs, _WHITE, th, cv2.LINE_AA)
+    if not caption:
+        return out
     rescued = f" (+{detection.symbols_rescued} by edge)" if detection.symbols_rescued else ""
     text = (f"{detection.symbols_found}/{detection.symbols_expected} symbols{rescued}, "
             f"{len(detection.occupied_cells)} occupied cells, {len(detection.obstacles)} obstacles")
     (tw, th), base = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, 0.55 * scale, scale)
-    banner = out[: th + base + 10 * scale, : tw + 16 * scale]
-    banner[:] = (banner * 0.35).astype(np.uint8)  # a dark band keeps the text legible on any floor
-    cv2.putText(out, text, (8 * scale, th + 5 * scale), cv2.FONT_HERSHEY_SIMPLEX, 0.55 * scale, _WHITE, scale, cv2.LINE_AA)
-    return out
+    # the caption gets its own band: drawn over the scene it hid the top row of symbols
+    band = np.full((th + base + 10 * scale, out.shape[1], 3), 40, np.uint8)
+    cv2.putText(band, text, (8 * scale, th + 5 * scale), cv2.FONT_HERSHEY_SIMPLEX, 0.55 * scale, _WHITE, scale,
+                cv2.LINE_AA)
+    return np.concatenate([band, out])
 
 
 def write_overlay(path: str | os.PathLike, image: np.ndarray, detection: Detection) -> Path:
