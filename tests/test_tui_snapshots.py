@@ -46,10 +46,15 @@ async def settle(pilot) -> None:
 
 
 async def quiet(pilot) -> None:
-    """No toasts in the picture: they come and go with time."""
+    """No toasts in the picture: they come and go with time.
+
+    A DataTable sizes its columns to new rows only when it next goes idle, which on a loaded
+    machine can come after one ``pause()``; a few short real-time pauses let every widget reach idle.
+    """
     await settle(pilot)
     pilot.app.clear_notifications()
-    await pilot.pause()
+    for _ in range(3):
+        await pilot.pause(0.05)
 
 
 async def detected(pilot) -> None:
