@@ -225,3 +225,21 @@ def test_large_symbols_are_worked_on_at_a_reduced_resolution_with_frame_pixel_re
         for r, c in ob.cells:
             x, y = cal.grid.centres_px[r, c]
             assert cv2.pointPolygonTest(ob.outline_px.astype(np.float32), (float(x), float(y)), False) >= 0
+
+
+@pytest.mark.parametrize("dx, dy, rot", [(3.0, 0.0, 0.3), (0.0, 3.0, -0.3), (2.1, -2.1, 0.3)])
+def test_the_paper_example_gives_its_counts_with_the_camera_moved(dx, dy, rot):
+    from pathlib import Path
+    folder = Path(__file__).resolve().parents[1] / "maps" / "paper-8x6"
+    calibration = calibrate(cv2.imread(str(folder / "reference.png"), cv2.IMREAD_GRAYSCALE))
+    scene = cv2.imread(str(folder / "scene-01.png"), cv2.IMREAD_GRAYSCALE)
+    h, w = scene.shape
+    # rotated about the image centre, then shifted: the movement the JSON reports
+    m = cv2.getRotationMatrix2D(((w - 1) / 2, (h - 1) / 2), rot, 1.0)
+    m[:, 2] += (dx, dy)
+    moved = cv2.warpAffine(scene, m, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    detection = Detector(calibration)(moved)
+    assert (calibration.symbols_expected, detection.symbols_found, int(detection.occupied.sum()),
+            len(detection.obstacles)) == (48, 35, 13, 3)
+    assert abs(detection.camera.shift_px[0] - dx) <= 0.2 and abs(detection.camera.shift_px[1] - dy) <= 0.2
+    assert abs(detection.camera.rotation_deg - rot) <= 0.02

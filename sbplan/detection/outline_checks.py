@@ -17,6 +17,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..polygons import resample_xy
+from ._small import median
 
 #: Points per outline at which the deviation is measured.
 SAMPLES = 64
@@ -388,21 +389,33 @@ def intact_edges(kept: np.ndarray, *, max_break: int | np.ndarray = 0, probed: n
         # outline with more broken points than they can hold is not looked at point by point
         counted = ~kept if probed is None else ~kept & probed
         few = ~intact & (limit > 0) & (counted.sum(axis=1) <= limit * EDGE_MAX_BREAKS)
-        for i in np.flatnonzero(few):
-            broken = ~kept[i] if probed is None else ~kept[i][probed[i]]
-            if broken.all():
-                continue
-            # the runs, the outline's start wrapped round to its end
-            start = int(np.argmin(broken))
-            rolled = np.roll(broken, -start).astype(np.int8)
-            edges = np.diff(np.concatenate([[0], rolled, [0]]))
-            begins, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
-            # runs a few kept points apart are one break (a striped surface over the outline
-            # keeps the step here and there; a scratch crosses cleanly)
-            apart = begins[1:] - ends[:-1] > gaps[i]
-            spans = ends[np.r_[np.flatnonzero(apart), len(ends) - 1]] - begins[np.r_[0, np.flatnonzero(apart) + 1]]
-            intact[i] = len(spans) <= EDGE_MAX_BREAKS and spans.max() <= limit[i]
+        for i in np.flatnonzero(few).tolist():
+            broken = (~kept[i] if probed is None else ~kept[i][probed[i]]).tolist()
+            intact[i] = _breaks_short(broken, int(limit[i]), int(gaps[i]))
     return intact
+
+
+def _breaks_short(broken: list[bool], limit: int, gap: int) -> bool:
+    """Do the runs of ``broken`` points around a closed outline make at most EDGE_MAX_BREAKS
+    breaks of at most ``limit`` points each, runs at most ``gap`` kept points apart counting as one
+    break (a striped surface over the outline keeps the step here and there; a scratch crosses
+    cleanly)? A few dozen points: plain Python is several times quicker than numpy's calls here."""
+    if all(broken):
+        return False
+    if not any(broken):
+        return True
+    # the runs, the outline's start wrapped round to its end (start on a kept point)
+    start = broken.index(False)
+    seq = broken[start:] + broken[:start]
+    spans: list[list[int]] = []  # [first broken, last broken + 1] of each break
+    for k, b in enumerate(seq):
+        if not b:
+            continue
+        if spans and k - spans[-1][1] <= gap:
+            spans[-1][1] = k + 1
+        else:
+            spans.append([k, k + 1])
+    return len(spans) <= EDGE_MAX_BREAKS and max(b - a for a, b in spans) <= limit
 
 
 def edges_intact(gray: np.ndarray, x: np.ndarray, y: np.ndarray, factors: np.ndarray, *,
@@ -470,7 +483,7 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
             continue
         patch = gray[y0:y1, x0:x1]
         v = _edge_levels(patch, x[i:i + 1] - x0, y[i:i + 1] - y0)[0].astype(np.float32)
-        step = float(np.median(v[1] - v[0]))
+        step = float(median(v[1] - v[0]))
         if step <= 0:
             continue
         opened = cv2.morphologyEx(patch, cv2.MORPH_OPEN, square)
@@ -489,8 +502,14 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
         scratch = cv2.dilate(thin, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))) > 0
         repaired = patch.copy()
         repaired[scratch] = opened[scratch]
-        paint = scratch & (inside > 0)
-        repaired[paint] = np.uint8(np.clip(np.median(v[0]), 0, 255))
+        # (inside the outline, within a scratch's width of the line, what reads brighter than
+        # half the step is the ink between the scratch and the edge, lost in the blur)
+        # A straight scratch that runs out along the edge leaves no thin line there (it merges with
+        # the floor): its straight course on from the line it left inside does.
+        beside = cv2.dilate(thin | _straight_courses(thin & inside), cv2.getStructuringElement(
+            cv2.MORPH_ELLIPSE, (2 * SCRATCH_WIDTH_PX + 3,) * 2)) > 0
+        paint = (scratch | (beside & (patch > median(v[0]) + step / 2))) & (inside > 0)
+        repaired[paint] = np.uint8(np.clip(median(v[0]), 0, 255))
         kept = edge_kept(repaired, x[i:i + 1] - x0, y[i:i + 1] - y0, factors[i:i + 1])
         limit = np.broadcast_to(np.asarray(max_break), (len(outlines),))[i:i + 1]
         gaps = np.broadcast_to(np.asarray(gap), (len(outlines),))[i:i + 1]
@@ -503,13 +522,19 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
 #: has many lines, or lines with its own surface around them.
 SCRATCH_MAX_LINES = 3
 SCRATCH_MAX_AREA = 0.16
-#: ... the longest of them at least this part of the symbol's size across.
-SCRATCH_MIN_LENGTH = 0.6
+#: ... together at least this part of the symbol's size across; pieces of fewer pixels than
+#: SCRATCH_SPECK_PX are not counted.
+SCRATCH_MIN_LENGTH = 0.4
+SCRATCH_SPECK_PX = 3
+#: A scratch's pixels lie within this distance of its middle line (half the widest scratch, its
+#: antialiased rims and a pixel of the thin-line mask's own spread, each way).
+SCRATCH_STRAIGHT_PX = SCRATCH_WIDTH_PX + 1.5
 #: ... where "ink" is at most this part of the symbol's step above the ink's level (and nine in
 #: ten of the pixels beside the lines at most twice that), and the lines lie within this part of
 #: the step of the floor's level.
 SCRATCH_INK_LEVEL = 0.25
 SCRATCH_FLOOR_LEVEL = 0.35
+SCRATCH_PIECES_FLOOR_LEVEL = 0.2
 
 
 def _scratch_like(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, levels: np.ndarray, step: float) -> bool:
@@ -523,19 +548,31 @@ def _scratch_like(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, level
     """
     over = (thin > 0) & (inside > 0)
     area = max(int(inside.sum()), 1)
-    if over.sum() > SCRATCH_MAX_AREA * area:
+    covered = int(over.sum())
+    # (a long scratch corner to corner covers more, but as one thin straight line)
+    if covered > SCRATCH_MAX_AREA * area and covered > (SCRATCH_WIDTH_PX + 3) * _straight_length(over):
         return False
     n, labels, stats, _ = cv2.connectedComponentsWithStats(over.astype(np.uint8), connectivity=8)
-    if not 1 <= n - 1 <= SCRATCH_MAX_LINES:
+    # (a few pixels left where the line grazes the outline's antialiased edge are no line of their own)
+    lines = stats[1:][stats[1:, cv2.CC_STAT_AREA] >= SCRATCH_SPECK_PX]
+    if not 1 <= len(lines) <= SCRATCH_MAX_LINES:
         return False
-    # the longest line runs across a good part of the symbol
-    extent = np.hypot(stats[1:, cv2.CC_STAT_WIDTH], stats[1:, cv2.CC_STAT_HEIGHT]).max()
-    if extent < SCRATCH_MIN_LENGTH * np.sqrt(area):
-        return False
-    # the lines are floor-coloured, and the pixels beside them, inside the symbol (away from its
-    # blurred edge), ink
+    # a line runs across a good part of the symbol; a scratch that passes close to the edge is left
+    # in pieces along one straight line, which count together (an obstacle's stripes lie side by side)
+    # (one of those pieces, though, is long: short bits in a row are an obstacle's edge)
+    need = SCRATCH_MIN_LENGTH * np.sqrt(area)
+    longest = float(np.hypot(lines[:, cv2.CC_STAT_WIDTH], lines[:, cv2.CC_STAT_HEIGHT]).max())
+    in_pieces = longest < need
+    if in_pieces:
+        pieces = np.isin(labels, np.flatnonzero(np.r_[0, stats[1:, cv2.CC_STAT_AREA]] >= SCRATCH_SPECK_PX))
+        if len(lines) < 2 or longest < need / 2 or _straight_length(pieces) < need:
+            return False
+    # the lines are floor-coloured (pieces in a row, which an obstacle's edge can make, closer to
+    # the floor's level), and the pixels beside them, inside the symbol (away from its blurred
+    # edge), ink
     floor, ink = float(np.percentile(levels[1], 50)), float(np.percentile(levels[0], 25))
-    if float(np.median(patch[over])) < floor - SCRATCH_FLOOR_LEVEL * step:
+    darker = SCRATCH_PIECES_FLOOR_LEVEL if in_pieces else SCRATCH_FLOOR_LEVEL
+    if float(median(patch[over])) < floor - darker * step:
         return False
     near = cv2.dilate(thin, np.ones((7, 7), np.uint8)) > 0
     core = cv2.erode(inside, np.ones((5, 5), np.uint8)) > 0
@@ -543,8 +580,45 @@ def _scratch_like(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, level
     if not beside.any():
         return False
     around = patch[beside].astype(np.float32)
-    return (float(np.median(around)) <= ink + SCRATCH_INK_LEVEL * step
+    return (float(median(around)) <= ink + SCRATCH_INK_LEVEL * step
             and float(np.percentile(around, 90)) <= ink + 2 * SCRATCH_INK_LEVEL * step)
+
+
+def _straight_courses(mask: np.ndarray) -> np.ndarray:
+    """The straight lines through each piece of ``mask`` (H, W; 0/1 uint8) that lies along one
+    (:func:`_straight_length`), drawn across the whole mask one pixel wide. uint8 0/1."""
+    out = np.zeros_like(mask)
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    reach = float(sum(mask.shape))
+    for k in range(1, n):
+        if stats[k, cv2.CC_STAT_AREA] < SCRATCH_SPECK_PX:
+            continue
+        rows, cols = np.nonzero(labels == k)
+        pts = np.stack([cols, rows], axis=1).astype(np.float64)
+        centre = pts.mean(axis=0)
+        eigvals, eigvecs = np.linalg.eigh((pts - centre).T @ (pts - centre) / len(pts))
+        if np.abs((pts - centre) @ eigvecs[:, 0]).max() > SCRATCH_STRAIGHT_PX:
+            continue
+        a, b = centre - reach * eigvecs[:, 1], centre + reach * eigvecs[:, 1]
+        cv2.line(out, (int(round(a[0])), int(round(a[1]))), (int(round(b[0])), int(round(b[1]))), 1, 1)
+    return out
+
+
+def _straight_length(mask: np.ndarray) -> float:
+    """The length of the pixels of ``mask`` (H, W) along their principal axis when they lie within
+    :data:`SCRATCH_STRAIGHT_PX` of one straight line, else 0."""
+    rows, cols = np.nonzero(mask)
+    if len(rows) < 2:
+        return 0.0
+    pts = np.stack([cols, rows], axis=1).astype(np.float64)
+    pts -= pts.mean(axis=0)
+    eigvals, eigvecs = np.linalg.eigh(pts.T @ pts / len(pts))
+    # (nearly all of them: a stray pixel or two where the line grazes a speck or a corner)
+    across = np.abs(pts @ eigvecs[:, 0])
+    if np.percentile(across, 97) > SCRATCH_STRAIGHT_PX:
+        return 0.0
+    along = (pts @ eigvecs[:, 1])[across <= SCRATCH_STRAIGHT_PX]
+    return float(along.max() - along.min())
 
 
 def _gray_u8(gray: np.ndarray) -> np.ndarray:

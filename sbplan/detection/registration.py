@@ -44,6 +44,7 @@ import cv2
 import numpy as np
 
 from ..errors import CameraMotionError
+from ._small import median
 
 if TYPE_CHECKING:
     from .grid import Grid
@@ -84,6 +85,9 @@ TRIM_SIGMAS = 3.0
 TRIM_FLOOR_PX = 0.25
 #: Pairing: a centre more than this fraction of a pitch from the nearest cell is not paired.
 PAIR_PITCH = 0.4
+#: RANSAC is skipped when every pair agrees with the least-squares fit and that fit moves no cell
+#: more than this fraction of a pitch from the coarse estimate (pairing again would change nothing).
+FAST_PITCH = 0.05
 
 
 @dataclass(frozen=True, eq=False)
@@ -182,23 +186,32 @@ def apply(matrix: np.ndarray, xy: np.ndarray) -> np.ndarray:
     ``(0, 0, 1)``)."""
     xy = np.asarray(xy, dtype=np.float64)
     out = xy @ matrix[:2, :2].T + matrix[:2, 2]
-    if matrix[2, 0] or matrix[2, 1]:
+    # (plain floats: a numpy scalar's truth value costs more than this whole function's arithmetic)
+    h0, h1 = float(matrix[2, 0]), float(matrix[2, 1])
+    if h0 or h1:
         w = xy @ matrix[2, :2] + matrix[2, 2]
         out /= w[..., None]
     return out
 
 
+def _distances(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise Euclidean distances between (N, 2) arrays."""
+    d = a - b
+    return np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
+
+
 def _similarity_lsq(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
-    """The least-squares similarity ``dst ~ s R src + t`` (closed form, as complex numbers)."""
-    ms, md = src.mean(axis=0), dst.mean(axis=0)
-    zs = (src[:, 0] - ms[0]) + 1j * (src[:, 1] - ms[1])
-    zd = (dst[:, 0] - md[0]) + 1j * (dst[:, 1] - md[1])
-    w = np.vdot(zs, zd) / max(float(np.vdot(zs, zs).real), 1e-12)
-    a, b = float(w.real), float(w.imag)
-    m = np.eye(3)
-    m[:2, :2] = [[a, -b], [b, a]]
-    m[:2, 2] = md - m[:2, :2] @ ms
-    return m
+    """The least-squares similarity ``dst ~ s R src + t`` (closed form; called a few times per
+    frame on a few dozen pairs, so written for few numpy calls)."""
+    n = len(src)
+    ms, md = src.sum(axis=0) / n, dst.sum(axis=0) / n
+    xs, xd = src - ms, dst - md
+    sxx = float(np.einsum("ij,ij->", xs, xs))
+    a = float(np.einsum("ij,ij->", xs, xd)) / max(sxx, 1e-12)
+    b = float(xs[:, 0] @ xd[:, 1] - xs[:, 1] @ xd[:, 0]) / max(sxx, 1e-12)
+    return np.array([[a, -b, md[0] - a * ms[0] + b * ms[1]],
+                     [b, a, md[1] - b * ms[0] - a * ms[1]],
+                     [0.0, 0.0, 1.0]])
 
 
 def _pair(centres: np.ndarray, grid: "Grid", to_calibration: np.ndarray, pitch: float) -> np.ndarray:
@@ -220,14 +233,15 @@ def _trimmed_fit(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, np.ndarr
     others (centres pulled by something dark beside their symbol err by a fraction of a pixel,
     inside RANSAC's threshold). Returns the matrix, the mask of the pairs kept and their RMS."""
     matrix = _similarity_lsq(src, dst)
-    resid = np.linalg.norm(apply(matrix, src) - dst, axis=1)
-    keep = resid <= max(TRIM_FLOOR_PX, TRIM_SIGMAS * 1.4826 * float(np.median(resid)))
-    if MIN_SYMBOLS <= keep.sum() < len(keep):
+    resid = _distances(apply(matrix, src), dst)
+    keep = resid <= max(TRIM_FLOOR_PX, TRIM_SIGMAS * 1.4826 * median(resid))
+    kept = int(np.count_nonzero(keep))
+    if MIN_SYMBOLS <= kept < len(keep):
         matrix = _similarity_lsq(src[keep], dst[keep])
-        resid = np.linalg.norm(apply(matrix, src[keep]) - dst[keep], axis=1)
+        resid = _distances(apply(matrix, src[keep]), dst[keep])
     else:
         keep = np.ones(len(src), bool)
-    return matrix, keep, float(np.sqrt(np.mean(resid ** 2)))
+    return matrix, keep, math.sqrt(float(resid @ resid) / len(resid))
 
 
 def register(centres_px: np.ndarray, grid: "Grid", image_shape: tuple[int, int], *,
@@ -289,6 +303,14 @@ def register_pairs(centres_px: np.ndarray, grid: "Grid", image_shape: tuple[int,
     if n_paired < MIN_SYMBOLS:
         return _few_symbols(centres[paired], ref[flat[paired]], hint, image_shape, pitch, inlier_px,
                             len(centres)), cells
+    fast = _agreeing_fit(ref[flat[paired]], centres[paired], hint, inlier_px, pitch)
+    if fast is not None:
+        # every pair moves together, close to the coarse estimate: nothing for RANSAC to reject,
+        # and pairing again with the fit would pair the same cells
+        matrix, keep, rms = fast
+        inliers = np.flatnonzero(paired)[keep]
+        return _finish(matrix, rms, inliers, flat, finite, cells, grid, image_shape, pitch,
+                       reference_thumbnail, frame)
     cv2.setRNGSeed(int(seed))
     m2, _ = cv2.estimateAffinePartial2D(ref[flat[paired]], centres[paired], method=cv2.RANSAC,
                                         ransacReprojThreshold=inlier_px, maxIters=500, confidence=0.999,
@@ -308,7 +330,30 @@ def register_pairs(centres_px: np.ndarray, grid: "Grid", image_shape: tuple[int,
                                 f"symbols found near their cells move together; the view changed or the calibration "
                                 f"is another camera's or floor's; recalibrate on the empty floor (sbplan calibrate)")
     matrix, keep, rms = _trimmed_fit(ref[flat[inliers]], centres[inliers])
-    inliers = inliers[keep]
+    return _finish(matrix, rms, inliers[keep], flat, finite, cells, grid, image_shape, pitch,
+                   reference_thumbnail, frame)
+
+
+def _agreeing_fit(src: np.ndarray, dst: np.ndarray, hint: np.ndarray, inlier_px: float,
+                  pitch: float) -> tuple[np.ndarray, np.ndarray, float] | None:
+    """The trimmed least-squares fit of the pairs when all of them agree with it within
+    ``inlier_px`` and it lies within :data:`FAST_PITCH` of a pitch of ``hint`` everywhere, else
+    None (RANSAC must sort the pairs). A camera that moves little between frames takes this path:
+    one symbol in a wrong place lies far off any fit and sends the frame to RANSAC."""
+    matrix, keep, rms = _trimmed_fit(src, dst)
+    moved = apply(matrix, src)
+    if float(np.abs(moved - dst).max()) > inlier_px / math.sqrt(2):
+        return None
+    if float(np.abs(moved - apply(hint, src)).max()) > FAST_PITCH * pitch:
+        return None
+    return matrix, keep, rms
+
+
+def _finish(matrix: np.ndarray, rms: float, inliers: np.ndarray, flat: np.ndarray, finite: np.ndarray,
+            cells: np.ndarray, grid: "Grid", image_shape, pitch: float, reference_thumbnail, frame
+            ) -> tuple[CameraMotion, np.ndarray]:
+    """register_pairs' last steps: the whole-pitch ambiguity resolved, the motion checked against
+    the limits, the inliers' cells recorded."""
     matrix, ambiguous = _resolve_pitch(matrix, _pitch_ambiguity(flat[inliers], grid), grid,
                                        reference_thumbnail, frame)
     # (a movement a whole pitch away that the texture chose is refused here as too large)
@@ -488,19 +533,17 @@ def _resolve_pitch(matrix: np.ndarray, ambiguous: list[tuple[int, int]], grid: "
 def _motion(matrix: np.ndarray, rms: float, used: int, model: str, image_shape, grid: "Grid | None", pitch: float,
             ambiguous: bool) -> CameraMotion:
     h, w = int(image_shape[0]), int(image_shape[1])
-    c = np.array([(w - 1) / 2.0, (h - 1) / 2.0])
-    moved_c = apply(matrix, c)
-    # the local linear part at the centre (exact for a similarity)
-    eps = 1.0
-    jx = (apply(matrix, c + (eps, 0.0)) - moved_c) / eps
-    jy = (apply(matrix, c + (0.0, eps)) - moved_c) / eps
-    lin = np.column_stack([jx, jy])
-    rotation = math.degrees(math.atan2(lin[0, 1] - lin[1, 0], lin[0, 0] + lin[1, 1]))
-    scale = math.sqrt(abs(float(np.linalg.det(lin))))
-    shift = (float(moved_c[0] - c[0]), float(moved_c[1] - c[1]))
+    cx, cy = (w - 1) / 2.0, (h - 1) / 2.0
+    # the centre and a pixel to its right and below it, moved: the local linear part at the centre
+    # (exact for a similarity)
+    (mx, my), (ax, ay), (bx, by) = apply(matrix, np.array([[cx, cy], [cx + 1.0, cy], [cx, cy + 1.0]])).tolist()
+    l00, l10, l01, l11 = ax - mx, ay - my, bx - mx, by - my
+    rotation = math.degrees(math.atan2(l01 - l10, l00 + l11))
+    scale = math.sqrt(abs(l00 * l11 - l01 * l10))
+    shift = (mx - cx, my - cy)
     if grid is not None:
         ref = grid.centres_px.reshape(-1, 2)
-        movement = float(np.max(np.linalg.norm(apply(matrix, ref) - ref, axis=1)))
+        movement = float(_distances(apply(matrix, ref), ref).max())
     else:
         movement = float(math.hypot(*shift))
     if rms > MAX_RESIDUAL_PX:
@@ -576,10 +619,14 @@ def grey_centres(gray: np.ndarray, boxes: np.ndarray, side: int) -> np.ndarray:
     win = np.lib.stride_tricks.sliding_window_view(gray, (side, side))[y0[inside], x0[inside]].astype(np.float32)
     ring = np.concatenate([win[:, 0, :], win[:, -1, :], win[:, 1:-1, 0], win[:, 1:-1, -1]], axis=1)
     floor = ring.mean(axis=1)
-    wt = np.maximum(floor[:, None, None] - CENTRE_FLOOR_NOISE - win, 0)
-    total = wt.sum(axis=(1, 2))
+    # the weights in place of the window's copy, and the total from the column sums: two passes
+    # over the windows fewer than the plain expressions
+    wt = np.subtract((floor - CENTRE_FLOOR_NOISE)[:, None, None], win, out=win)
+    np.maximum(wt, 0, out=wt)
+    columns = wt.sum(axis=1)
+    total = columns.sum(axis=1)
     r = np.arange(side, dtype=np.float32)
-    cx = (wt.sum(axis=1) @ r) / np.maximum(total, 1e-6)
+    cx = (columns @ r) / np.maximum(total, 1e-6)
     cy = (wt.sum(axis=2) @ r) / np.maximum(total, 1e-6)
     good = total > 0
     res = np.full((int(inside.sum()), 2), np.nan)

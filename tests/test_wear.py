@@ -1,0 +1,81 @@
+"""Wear (issue 14): scratches across printed symbols, dirt specks and tyre marks between them do
+not make a cell occupied; an object over a real part of a symbol still does. Scenes from the real
+renderer (``effects={"wear": 1.0}``: about half of the symbols scratched by 1-3 px lines of floor
+colour), and the scratch repair on tiny synthetic arrays."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from sbplan.bench.evaluation import score_cells
+from sbplan.detection import Detector
+from sbplan.detection.calibration import Calibration, calibrate
+from sbplan.detection.outline_checks import edge_contrast, edge_factors, edge_probes, scratches_repaired
+from sbplan.synth import FloorSpec, SceneSpec, render_reference, render_scene
+
+FLOOR = FloorSpec(width=800, height=600, cols=8, rows=5)
+
+
+@pytest.fixture(scope="module")
+def calibration() -> Calibration:
+    return calibrate(render_reference(FLOOR, seed=0))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_a_worn_empty_floor_is_all_free(calibration, seed):
+    image, truth = render_scene(FLOOR, SceneSpec(n_obstacles=0, effects={"wear": 1.0}), seed=seed)
+    assert truth.params["effects"]["wear"] == 1.0
+    cells = Detector(calibration).find_cells(image)
+    assert not cells.occupied.any(), np.argwhere(cells.occupied).tolist()
+
+
+@pytest.mark.parametrize("motion", [None, (2.5, -1.5, 0.2, 1.0)], ids=["still", "moved"])
+@pytest.mark.parametrize("seed", [0, 2])
+def test_objects_on_a_worn_floor_are_still_found(calibration, seed, motion):
+    effects = {"wear": 1.0} if motion is None else {"wear": 1.0, "motion": motion}
+    image, truth = render_scene(FLOOR, SceneSpec(n_obstacles=3, effects=effects), seed=seed)
+    scores = score_cells(Detector(calibration).find_cells(image).occupied, truth.cells)
+    assert scores.tp > 0 and scores.fn == 0 and scores.fp == 0
+
+
+# A 40 px square symbol on a 100 px floor, drawn at 4x and reduced (antialiased edges).
+INK, FLOOR_GREY = 45, 170
+OUTLINE = np.array([[30.0, 30.0], [70.0, 30.0], [70.0, 70.0], [30.0, 70.0]]) - 0.5
+
+
+def _symbol(draw=None) -> np.ndarray:
+    big = np.full((400, 400), FLOOR_GREY, np.uint8)
+    cv2.rectangle(big, (120, 120), (279, 279), INK, -1)
+    if draw is not None:
+        draw(big)
+    return cv2.resize(big, (100, 100), interpolation=cv2.INTER_AREA)
+
+
+def _repaired(image: np.ndarray) -> bool:
+    x, y = edge_probes([OUTLINE])
+    factors = edge_factors(edge_contrast(_symbol(), x, y))
+    return bool(scratches_repaired(image, [OUTLINE], x, y, factors, max_break=2)[0])
+
+
+def test_a_scratch_that_runs_out_along_the_edge_is_wear():
+    # a 2 px line of floor colour entering through the top and leaving along the right edge,
+    # where it merges with the floor and cuts the ink's last pixels off
+    scratched = _symbol(lambda m: cv2.line(m, (200, 110), (272, 290), FLOOR_GREY, 8))
+    assert _repaired(scratched)
+
+
+def test_a_floor_coloured_object_over_a_sliver_of_the_symbol_is_not_wear():
+    # the same strip of the symbol covered, but by a block with no line running into the ink
+    covered = _symbol(lambda m: cv2.rectangle(m, (262, 100), (300, 300), FLOOR_GREY, -1))
+    assert not _repaired(covered)
+
+
+def test_a_striped_object_over_a_corner_of_the_symbol_is_not_wear():
+    # light stripes on the object's own grey surface, not on the symbol's ink
+    def striped_object(m):
+        cv2.fillPoly(m, [np.array([[90, 90], [230, 90], [90, 230]], np.int32)], 110)
+        for k in range(40, 140, 24):
+            cv2.line(m, (90 + k, 90), (90, 90 + k), FLOOR_GREY, 8)
+    assert not _repaired(_symbol(striped_object))
