@@ -43,11 +43,26 @@ async def type_into(pilot, selector: str, text: str) -> None:
     await pilot.pause()
 
 
-async def calibrated_and_detected(app, pilot) -> None:
-    """With ``auto=False``: calibrate on the opened reference (screen 1), detect (screen 2)."""
-    await settle(app, pilot)  # the reference opens on its own
-    await pilot.press("c")
-    await settle(app, pilot)
-    await pilot.press("2")
-    await pilot.press("d")
-    await settle(app, pilot)
+class RunningApp:
+    """One app kept running across several tests (a module-scoped fixture holds it): starting an
+    app and bringing it to a state costs far more than what most tests then do with it.
+
+    ``run(body)`` runs ``await body(app, pilot)`` on the app's own event loop, which stands still
+    between tests; a test lets its steps finish (``settle``) before it returns, so that no worker
+    thread waits on the stopped loop.
+    """
+
+    def __init__(self, app, size: tuple[int, int]) -> None:
+        self.app = app
+        self._runner = asyncio.Runner()
+        self._context = app.run_test(size=size)
+        self.pilot = self._runner.run(self._context.__aenter__())
+
+    def run(self, body):
+        return self._runner.run(body(self.app, self.pilot))
+
+    def close(self) -> None:
+        try:
+            self._runner.run(self._context.__aexit__(None, None, None))
+        finally:
+            self._runner.close()

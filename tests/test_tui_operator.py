@@ -35,11 +35,12 @@ from sbplan.tui.widgets.keys import KeyFooter  # noqa: E402
 from sbplan.tui.widgets.mapview import MapView  # noqa: E402
 from sbplan.tui.widgets.zoomview import ZoomView  # noqa: E402
 
-from _tui import aio, calibrated_and_detected, error_messages, settle, text_of, type_into  # noqa: E402
+from _tui import RunningApp, aio, error_messages, settle, text_of, type_into  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 MAP = REPO / "maps" / "paper-8x6"
-SIZE = (140, 45)
+#: The terminal size of these tests: what they assert holds at any size, and a small terminal
+#: draws quickest (tests/test_tui_snapshots.py keeps the pictures at 80 x 24 and 140 x 45).
 SMALL = (80, 24)
 
 pytestmark = pytest.mark.skipif(not (MAP / "reference.png").is_file(), reason="maps/paper-8x6 not built")
@@ -58,6 +59,38 @@ async def to_route(app, pilot) -> None:
     await settle(app, pilot)
     await pilot.press("3")
     await settle(app, pilot)
+
+
+def untouched(app) -> bool:
+    """The routed app as it was made: no screen over the job screens, no dynamic obstacle, the
+    default obstacle model, the route planned from the start and valid."""
+    s = app.session
+    return (len(app.screen_stack) == 1 and isinstance(app.screen, JobScreen) and not app.screen.running
+            and s.route is not None and s.old_route is None
+            and s.route_invalid is None and s.dynamic == [] and s.obstacle_model == "mar")
+
+
+@pytest.fixture(scope="module")
+def _routed_apps():
+    apps: list[RunningApp] = []
+    yield apps
+    for running in apps:
+        running.close()
+
+
+@pytest.fixture
+def routed(_routed_apps, monkeypatch) -> RunningApp:
+    """maps/paper-8x6 at 80 x 24, calibrated, detected and planned (auto). The tests share one
+    while each leaves it :func:`untouched`; a test that changed it hands the next a new one."""
+    monkeypatch.chdir(REPO)
+    if not _routed_apps or not untouched(_routed_apps[-1].app):
+        if _routed_apps:
+            _routed_apps.pop().close()
+        running = RunningApp(SbplanApp(MAP, auto=True, hide_timings=True), SMALL)
+        _routed_apps.append(running)
+        running.run(to_route)
+        assert untouched(running.app)
+    return _routed_apps[-1]
 
 
 # -- 1: progress and cancel --------------------------------------------------------------------------
@@ -108,163 +141,130 @@ async def test_progress_shows_above_the_footer_and_cancel_stops_the_calibration(
         assert fractions == sorted(fractions) and fractions[-1] == 1.0 and len(stages) >= 8
 
 
-# -- 2: a stale route, clearing, duplicates -------------------------------------------------------------
-@aio
-async def test_a_blocked_route_is_marked_invalid_x_replans_and_an_obstacle_counts_once():
-    app = SbplanApp(MAP, auto=True, hide_timings=True)
-    async with app.run_test(size=SIZE) as pilot:
-        await to_route(app, pilot)
-        s, view = app.session, app.screen.query_one("#map", MapView)
-        first = s.route
-        view.set_cursor(point_along(first.waypoints, 0.6))
-        await pilot.press("o")
-        await settle(app, pilot)
-        detour = s.route
-        assert detour is not first and detour.replanned
-        (square,) = [Polygon(d) for d in s.dynamic]
-        # the same obstacle again is one obstacle: nothing changes
-        await pilot.press("o")
-        await settle(app, pilot)
-        assert len(s.dynamic) == 1 and s.route is detour
-        # x: the obstacle goes, and the route is planned again from the robot, through where it was
-        robot = s.robot_position()
-        remaining = detour.length - LineString(detour.waypoints).project(LineString([robot, robot]).centroid)
-        await pilot.press("x")
-        await settle(app, pilot)
-        assert s.dynamic == [] and s.old_route is detour
-        np.testing.assert_allclose(s.route.waypoints[0], robot)
-        assert LineString(s.route.waypoints).intersects(square) and s.route.length < remaining - 1e-6
-        # an obstacle on the goal: replanning fails, the route is marked invalid and drawn as blocked
-        n_errors = len(error_messages(app))
-        view.set_cursor(s.goal)
-        await pilot.press("o")
-        await settle(app, pilot)
-        assert len(error_messages(app)) == n_errors + 1 and "inside an obstacle" in error_messages(app)[-1]
-        assert s.route_invalid and "replanning failed" in s.route_invalid
-        assert "route INVALID" in text_of(app, "#route-info")
-        assert view.scene["route"] is None and view.scene["blocked_route"] is not None
-        # clearing it makes the route valid again
-        await pilot.press("x")
-        await settle(app, pilot)
-        assert s.route_invalid is None and view.scene["route"] is not None
-        assert "INVALID" not in text_of(app, "#route-info")
-
-
 # -- 3: outputs follow the map, overwriting asks ----------------------------------------------------------
-async def asked_on_enter(app, pilot, field: str, path, named: str) -> None:
-    """Type ``path`` into ``field`` and press Enter: the app asks before overwriting ``named``."""
-    await type_into(pilot, field, str(path))
-    await pilot.press("enter")
+async def asked(app, pilot, named: str) -> None:
     await pilot.pause()
     assert isinstance(app.screen, ConfirmScreen) and named in text_of(app, "#confirm-question")
 
 
-
 @aio
-async def test_outputs_follow_the_map_and_overwriting_asks_first(tmp_path):
+async def test_outputs_follow_the_map_and_overwriting_asks_first(tmp_path, monkeypatch):
+    """What the operator reported: paper-8x6 calibrated and saved, then the crowded map opened,
+    calibrated and saved with ctrl+s: that wrote over out/paper-8x6/calibration.json."""
     from sbplan.detection.calibration import load_calibration
 
+    monkeypatch.chdir(tmp_path)  # out/ is made here
+    paper_cal, paper_out = Path("out/paper-8x6/calibration.json"), Path("out/paper-8x6")
+    paper_cal.parent.mkdir(parents=True)
+    paper_cal.write_text("keep me")
+    (paper_out / "overlay.png").write_text("old")
     app = SbplanApp(MAP, auto=False, hide_timings=True)
-    async with app.run_test(size=SIZE) as pilot:
+    async with app.run_test(size=SMALL) as pilot:
         await settle(app, pilot)
-        assert app.screen.query_one("#cal-path", Input).value == "out/paper-8x6/calibration.json"
+        assert app.screen.query_one("#cal-path", Input).value == str(paper_cal)
+        await pilot.press("c")
+        await settle(app, pilot)
+        # saving over an existing file asks; "n" keeps it, "y" writes
+        await pilot.press("ctrl+s")
+        await asked(app, pilot, "calibration.json")
+        await pilot.press("n")
+        await settle(app, pilot)
+        assert paper_cal.read_text() == "keep me"
+        await pilot.press("ctrl+s")
+        await asked(app, pilot, "calibration.json")
+        await pilot.press("y")
+        await settle(app, pilot)
+        assert load_calibration(paper_cal).grid.shape == (6, 8)
+        # exporting into a folder that has the files asks too
         await pilot.press("2")
-        assert app.screen.query_one("#export-dir", Input).value == "out/paper-8x6"
+        await settle(app, pilot)
+        assert app.screen.query_one("#export-dir", Input).value == str(paper_out)
+        await pilot.press("d")
+        await settle(app, pilot)
+        await type_into(pilot, "#export-dir", str(paper_out))
+        await pilot.press("enter")
+        await asked(app, pilot, "overlay.png")
+        await pilot.press("escape")
+        await settle(app, pilot)
+        assert (paper_out / "overlay.png").read_text() == "old" and not (paper_out / "obstacles.geojson").exists()
+        # another map: its outputs go to its own folder, the first map's calibration stays
         await pilot.press("1")
-        await type_into(pilot, "#ref-path", "maps/crowded")
+        await type_into(pilot, "#ref-path", str(REPO / "maps" / "crowded"))
         await pilot.press("enter")
         await settle(app, pilot)
-        assert app.session.map_dir == Path("maps/crowded")
+        assert app.session.map_dir == REPO / "maps" / "crowded" and app.session.calibration is None
         assert app.screen.query_one("#cal-path", Input).value == "out/crowded/calibration.json"
         await pilot.press("2")
         assert app.screen.query_one("#export-dir", Input).value == "out/crowded"
-        # saving over an existing file asks; "n" keeps it, "y" writes
         await pilot.press("1")
         await pilot.press("c")
         await settle(app, pilot)
-        target = tmp_path / "cal.json"
-        target.write_text("keep me")
-        await asked_on_enter(app, pilot, "#cal-path", target, "cal.json")
-        await pilot.press("n")
+        await pilot.press("ctrl+s")  # nothing there yet: written without asking
         await settle(app, pilot)
-        assert target.read_text() == "keep me"
-        await pilot.press("ctrl+s")
-        await pilot.pause()
-        assert isinstance(app.screen, ConfirmScreen)
-        await pilot.press("y")
-        await settle(app, pilot)
-        assert load_calibration(target).grid.shape == (9, 12)
-        # exporting into a folder that has the files asks too
-        await pilot.press("2")
-        await pilot.press("d")
-        await settle(app, pilot)
-        folder = tmp_path / "export"
-        folder.mkdir()
-        (folder / "overlay.png").write_text("old")
-        await asked_on_enter(app, pilot, "#export-dir", folder, "overlay.png")
-        await pilot.press("escape")
-        await settle(app, pilot)
-        assert (folder / "overlay.png").read_text() == "old" and not (folder / "obstacles.geojson").exists()
+        assert load_calibration("out/crowded/calibration.json").grid.shape == (9, 12)
+        assert load_calibration(paper_cal).grid.shape == (6, 8)
+        assert not error_messages(app)
 
+
+# -- 4, 5 and 2 share one app on a planned route (``routed``), in this order: 2 changes its route ----------------
 
 # -- 4: 80 x 24 ---------------------------------------------------------------------------------------------
-@aio
-async def test_at_80x24_every_key_is_seen_the_panel_goes_below_help_scrolls_and_zoom_reads_numbers():
-    app = SbplanApp(MAP, auto=True, hide_timings=True)
-    async with app.run_test(size=SMALL) as pilot:
-        await to_route(app, pilot)
-        for mode in ("calibration", "detection", "route"):
-            await app.switch_mode(mode)
-            await pilot.pause()
-            screen = app.screen
-            keys = list(screen.query(FooterKey))
-            (palette,) = [k for k in keys if k.has_class("-command-palette")]
-            shown = {b.action for _, b, _, _ in screen.active_bindings.values() if b.show}
-            assert shown <= {k.action for k in keys}, mode
-            for k in keys:
-                assert k.region.width > 0 and k.region.right <= SMALL[0] and k.region.bottom <= SMALL[1], (mode, k.key)
-                if k is not palette and k.region.y == palette.region.y:
-                    assert k.region.right <= palette.region.x, (mode, k.key)
-            main, side = screen.query_one(".main"), screen.query_one(".side")
-            assert side.region.width == SMALL[0] and side.region.y >= main.region.bottom, mode
-            assert main.region.height >= 8 and side.region.height >= 5, mode
-        # help fits the width and scrolls
-        await pilot.press("f1")
-        assert isinstance(app.screen, HelpScreen)
-        box = app.screen.query_one("#help")
-        assert box.region.right <= SMALL[0] and box.max_scroll_y > 0
-        await pilot.press("pagedown")
-        for _ in range(100):  # the scroll is animated: a loaded machine takes its time
-            if box.scroll_y > 0:
-                break
-            await pilot.pause(0.05)
-        assert box.scroll_y > 0
-        await pilot.press("escape")
-        # the detection picture full screen: obstacle numbers are text, at any zoom
-        await app.switch_mode("detection")
-        await pilot.press("f")
+def test_at_80x24_every_key_is_seen_the_panel_goes_below_help_scrolls_and_zoom_reads_numbers(routed):
+    routed.run(at_80x24)
+
+
+async def at_80x24(app, pilot) -> None:
+    for mode in ("calibration", "detection", "route"):
+        await app.switch_mode(mode)
         await pilot.pause()
-        assert isinstance(app.screen, PictureScreen)
-        zoom = app.screen.query_one(ZoomView)
-        assert zoom.region.width == SMALL[0] and zoom.region.height >= SMALL[1] - 3
+        screen = app.screen
+        keys = list(screen.query(FooterKey))
+        (palette,) = [k for k in keys if k.has_class("-command-palette")]
+        shown = {b.action for _, b, _, _ in screen.active_bindings.values() if b.show}
+        assert shown <= {k.action for k in keys}, mode
+        for k in keys:
+            assert k.region.width > 0 and k.region.right <= SMALL[0] and k.region.bottom <= SMALL[1], (mode, k.key)
+            if k is not palette and k.region.y == palette.region.y:
+                assert k.region.right <= palette.region.x, (mode, k.key)
+        main, side = screen.query_one(".main"), screen.query_one(".side")
+        assert side.region.width == SMALL[0] and side.region.y >= main.region.bottom, mode
+        assert main.region.height >= 8 and side.region.height >= 5, mode
+    # help fits the width and scrolls
+    await pilot.press("f1")
+    assert isinstance(app.screen, HelpScreen)
+    box = app.screen.query_one("#help")
+    assert box.region.right <= SMALL[0] and box.max_scroll_y > 0
+    await pilot.press("pagedown")
+    for _ in range(100):  # the scroll is animated: a loaded machine takes its time
+        if box.scroll_y > 0:
+            break
+        await pilot.pause(0.05)
+    assert box.scroll_y > 0
+    await pilot.press("escape")
+    # the detection picture full screen: obstacle numbers are text, at any zoom
+    await app.switch_mode("detection")
+    await pilot.press("f")
+    await pilot.pause()
+    assert isinstance(app.screen, PictureScreen)
+    zoom = app.screen.query_one(ZoomView)
+    assert zoom.region.width == SMALL[0] and zoom.region.height >= SMALL[1] - 3
 
-        def labels() -> set[str]:
-            text = "".join(zoom.render_line(y).text for y in range(zoom.size.height))
-            return {ch for ch in text if ch.isdigit()}
+    def labels() -> set[str]:
+        text = "".join(zoom.render_line(y).text for y in range(zoom.size.height))
+        return {ch for ch in text if ch.isdigit()}
 
-        assert labels() == {"1", "2", "3"}
-        await pilot.press("plus")
-        await pilot.press("plus")
-        assert zoom.zoom == pytest.approx(2.25) and labels() and labels() <= {"1", "2", "3"}
-        await pilot.press("0")
-        assert zoom.zoom == 1.0 and labels() == {"1", "2", "3"}
-        await pilot.press("escape")
-        assert isinstance(app.screen, DetectionScreen)
+    assert labels() == {"1", "2", "3"}
+    await pilot.press("plus")
+    await pilot.press("plus")
+    assert zoom.zoom == pytest.approx(2.25) and labels() and labels() <= {"1", "2", "3"}
+    await pilot.press("0")
+    assert zoom.zoom == 1.0 and labels() == {"1", "2", "3"}
+    await pilot.press("escape")
+    assert isinstance(app.screen, DetectionScreen)
 
 
 # -- 5: the obstacle model ------------------------------------------------------------------------------------
-@aio
-async def test_the_obstacle_model_has_the_cli_names_and_routes_follow_it():
+def test_the_obstacle_model_has_the_cli_names_and_routes_follow_it(routed):
     import argparse
 
     from sbplan.cli import build_parser
@@ -272,9 +272,10 @@ async def test_the_obstacle_model_has_the_cli_names_and_routes_follow_it():
     plan_parser = next(a for a in build_parser("plan")._actions
                        if isinstance(a, argparse._SubParsersAction)).choices["plan"]
     cli_names = next(a for a in plan_parser._actions if "--use" in a.option_strings).choices
-    app = SbplanApp(MAP, auto=True, hide_timings=True)
-    async with app.run_test(size=SIZE) as pilot:
-        await to_route(app, pilot)
+
+    async def body(app, pilot):
+        await app.switch_mode("route")
+        await pilot.pause()
         s = app.session
         select = app.screen.query_one("#obstacle-model", Select)
         assert {value for _, value in select._options} == set(cli_names)
@@ -292,6 +293,59 @@ async def test_the_obstacle_model_has_the_cli_names_and_routes_follow_it():
         assert s.route.length <= around_mars.length + 1e-9
         drawn = app.screen.query_one("#map", MapView).scene["obstacles"]
         assert [Polygon(p).equals(o) for p, o in zip(drawn, outlines)] == [True] * len(outlines)
+        # and back: the route around the MARs again
+        select.value = "mar"
+        await settle(app, pilot)
+        assert s.obstacle_model == "mar" and s.route.length == pytest.approx(around_mars.length)
+        mars = [Polygon(ob.mar_m) for ob in s.detection.obstacles]
+        assert [Polygon(p).equals(m) for p, m in zip(app.screen.query_one("#map", MapView).scene["obstacles"], mars)] \
+            == [True] * len(mars)
+
+    routed.run(body)
+
+
+# -- 2: a stale route, clearing, duplicates -------------------------------------------------------------
+def test_a_blocked_route_is_marked_invalid_x_replans_and_an_obstacle_counts_once(routed):
+    routed.run(blocked_route)
+
+
+async def blocked_route(app, pilot) -> None:
+    await app.switch_mode("route")
+    await pilot.pause()
+    s, view = app.session, app.screen.query_one("#map", MapView)
+    first = s.route
+    view.set_cursor(point_along(first.waypoints, 0.6))
+    await pilot.press("o")
+    await settle(app, pilot)
+    detour = s.route
+    assert detour is not first and detour.replanned
+    (square,) = [Polygon(d) for d in s.dynamic]
+    # the same obstacle again is one obstacle: nothing changes
+    await pilot.press("o")
+    await settle(app, pilot)
+    assert len(s.dynamic) == 1 and s.route is detour
+    # x: the obstacle goes, and the route is planned again from the robot, through where it was
+    robot = s.robot_position()
+    remaining = detour.length - LineString(detour.waypoints).project(LineString([robot, robot]).centroid)
+    await pilot.press("x")
+    await settle(app, pilot)
+    assert s.dynamic == [] and s.old_route is detour
+    np.testing.assert_allclose(s.route.waypoints[0], robot)
+    assert LineString(s.route.waypoints).intersects(square) and s.route.length < remaining - 1e-6
+    # an obstacle on the goal: replanning fails, the route is marked invalid and drawn as blocked
+    n_errors = len(error_messages(app))
+    view.set_cursor(s.goal)
+    await pilot.press("o")
+    await settle(app, pilot)
+    assert len(error_messages(app)) == n_errors + 1 and "inside an obstacle" in error_messages(app)[-1]
+    assert s.route_invalid and "replanning failed" in s.route_invalid
+    assert "route INVALID" in text_of(app, "#route-info")
+    assert view.scene["route"] is None and view.scene["blocked_route"] is not None
+    # clearing it makes the route valid again
+    await pilot.press("x")
+    await settle(app, pilot)
+    assert s.route_invalid is None and view.scene["route"] is not None
+    assert "INVALID" not in text_of(app, "#route-info")
 
 
 # -- issue 14: the camera's movement, its warning, re-anchoring, the error --------------------------------------
@@ -320,9 +374,11 @@ async def test_camera_movement_is_shown_warned_and_reanchored_and_too_much_is_a_
     from sbplan.detection.calibration import load_calibration
 
     monkeypatch.chdir(moved_map.parent)  # outputs go to out/paper-moved/ in the temporary folder
-    app = SbplanApp(moved_map.name, auto=False, hide_timings=True)
-    async with app.run_test(size=SIZE) as pilot:
-        await calibrated_and_detected(app, pilot)
+    app = SbplanApp(moved_map.name, auto=True, hide_timings=True)
+    async with app.run_test(size=SMALL) as pilot:
+        await settle(app, pilot)  # opened and calibrated on its own
+        await pilot.press("2")  # detects on its own on first show
+        await settle(app, pilot)
         s = app.session
         det = s.detection
         assert len(det.occupied_cells) == 13 and len(det.obstacles) == 3
