@@ -421,3 +421,32 @@ async def test_camera_movement_is_shown_warned_and_reanchored_and_too_much_is_a_
         await pilot.press("enter")
         await settle(app, pilot)
         assert len(s.detection.occupied_cells) == 13
+
+
+# -- tables: drawn at their final column widths from the first paint --------------------------------------------
+@aio
+async def test_a_table_is_drawn_at_its_final_column_widths_from_the_first_paint():
+    """A DataTable sized its columns only when it next went idle; a paint before that (a busy
+    machine) drew, and its line cache kept, the header at the labels' widths over wider cells."""
+    from textual.app import App
+    from textual.widgets import DataTable
+
+    from sbplan.tui.widgets.tables import fill_table
+
+    class OneTable(App):
+        def compose(self):
+            yield DataTable()
+
+    app = OneTable()
+    async with app.run_test(size=(40, 6)) as pilot:
+        table = app.query_one(DataTable)
+        fill_table(table, ("size m", "id"), [("1.50×1.00", "1"), ("0.5", "12")], keys=["a", "b"])
+        header = table.render_line(0).text  # painted before the table went idle
+        await pilot.pause()
+        assert table.render_line(0).text == header
+        assert header.index("id") == table.render_line(1).text.index("1 ", len(" 1.50×1.00"))
+        assert [table.get_row("b")[0], table.row_count] == ["0.5", 2]
+        fill_table(table, ("stage", "ms"), [])  # emptied: the labels only
+        assert table.row_count == 0 and table.render_line(0).text.split() == ["stage", "ms"]
+        with pytest.raises(ValueError, match="rows"):
+            fill_table(table, ("stage", "ms"), [("binarize",)])

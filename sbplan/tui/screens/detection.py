@@ -21,12 +21,37 @@ from ..widgets.busy import Busy
 from ..widgets.keys import KeyFooter
 from ..widgets.path_input import PathInput
 from ..widgets.picture import Picture
+from ..widgets.tables import fill_table
 from .base import JobScreen
 
 LEGEND = ("[#e62828]▆ occupied cells, outlines[/]  [#ffdc00]▢ MARs[/]  [#3cc83c]● symbols found[/]  "
           "[#00c8e6]× symbol shapes off their cell[/]")
 #: What :meth:`DetectionScreen.action_export` writes into the export folder.
 EXPORTS = ("overlay.png", "occupancy.png", "obstacles.geojson", "nav2/map.yaml", "nav2/map.pgm")
+
+#: the columns of the obstacle and timing tables
+OBSTACLE_COLUMNS = ("id", "cells", "size m", "angle °", "centre m")
+TIMING_COLUMNS = ("stage", "ms")
+
+
+def table_rows(det, *, hide_timings: bool = False) -> dict[str, list[tuple[str, ...]]]:
+    """The rows of the obstacle and timing tables for a detection (none for None):
+    ``{"obstacles": [...], "timings": [...]}``, cells as text, in :data:`OBSTACLE_COLUMNS` and
+    :data:`TIMING_COLUMNS` order."""
+    rows: dict[str, list[tuple[str, ...]]] = {"obstacles": [], "timings": []}
+    if det is None:
+        return rows
+    for ob in det.obstacles:
+        j = ob.to_json()
+        size = j.get("size_m")
+        rows["obstacles"].append((str(ob.id), str(len(ob.cells)),
+                                  f"{size[0]:.2f}×{size[1]:.2f}" if size else "-",
+                                  # as sbplan detect prints it: a vertical side is 90, never -90
+                                  f"{axis_angle(j['angle_m_deg'], 1):.1f}" if "angle_m_deg" in j else "-",
+                                  f"{j['centre_m'][0]:.2f},{j['centre_m'][1]:.2f}" if "centre_m" in j else "-"))
+    for stage, ms in det.timings_ms.items():
+        rows["timings"].append((stage, "··· " if hide_timings else f"{ms:.1f}"))
+    return rows
 
 
 def camera_lines(motion) -> list[str]:
@@ -88,8 +113,6 @@ class DetectionScreen(JobScreen):
         yield KeyFooter()
 
     def on_mount(self) -> None:
-        self.query_one("#obstacles", DataTable).add_columns("id", "cells", "size m", "angle °", "centre m")
-        self.query_one("#timings", DataTable).add_columns("stage", "ms")
         self.on_screen_resume()
 
     def on_screen_resume(self) -> None:
@@ -233,8 +256,9 @@ class DetectionScreen(JobScreen):
         table = self.query_one("#obstacles", DataTable)
         timings = self.query_one("#timings", DataTable)
         summary = self.query_one("#det-summary", Static)
-        table.clear()
-        timings.clear()
+        rows = table_rows(det, hide_timings=self.app.hide_timings)
+        fill_table(table, OBSTACLE_COLUMNS, rows["obstacles"], keys=[row[0] for row in rows["obstacles"]])
+        fill_table(timings, TIMING_COLUMNS, rows["timings"])
         self.query_one("#reanchor", Button).display = s.calibration is not None and s.scene is not None
         if det is None:
             picture.show(s.scene if s.calibration is not None else None,
@@ -255,17 +279,6 @@ class DetectionScreen(JobScreen):
             f"obstacles   {len(det.obstacles)}",
             *camera_lines(det.camera),
             f"stages      {', '.join(det.stages.values())}"]))
-        for ob in det.obstacles:
-            j = ob.to_json()
-            size = j.get("size_m")
-            table.add_row(str(ob.id), str(len(ob.cells)),
-                          f"{size[0]:.2f}×{size[1]:.2f}" if size else "-",
-                          # as sbplan detect prints it: a vertical side is 90, never -90
-                          f"{axis_angle(j['angle_m_deg'], 1):.1f}" if "angle_m_deg" in j else "-",
-                          f"{j['centre_m'][0]:.2f},{j['centre_m'][1]:.2f}" if "centre_m" in j else "-",
-                          key=str(ob.id))
-        for stage, ms in det.timings_ms.items():
-            timings.add_row(stage, "··· " if self.app.hide_timings else f"{ms:.1f}")
 
     # -- events ----------------------------------------------------------------------------------
     def on_input_submitted(self, event: PathInput.Submitted) -> None:
