@@ -4,8 +4,22 @@ from __future__ import annotations
 
 import asyncio
 import functools
+from pathlib import Path
 
+import pytest
 from textual.widgets import Input, Static
+
+REPO = Path(__file__).resolve().parents[1]
+MAP = REPO / "maps" / "paper-8x6"
+#: ``pytestmark = needs_map``: the terminal app's tests run on maps/paper-8x6
+needs_map = pytest.mark.skipif(not (MAP / "reference.png").is_file(), reason="maps/paper-8x6 not built")
+
+
+@pytest.fixture(autouse=True)
+def in_repo(monkeypatch):
+    """Paths on screen are shown relative to the working folder: the checkout (imported by a test
+    module, it applies to each of its tests)."""
+    monkeypatch.chdir(REPO)
 
 
 def aio(fn):

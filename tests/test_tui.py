@@ -26,19 +26,12 @@ from sbplan.tui.session import point_along  # noqa: E402
 from sbplan.tui.widgets.busy import Busy  # noqa: E402
 from sbplan.tui.widgets.mapview import MapView  # noqa: E402
 
-from _tui import aio, error_messages, settle, text_of, type_into  # noqa: E402
+from _tui import (MAP, REPO, aio, error_messages, in_repo,  # noqa: E402,F401 (in_repo: autouse)
+                  needs_map, settle, text_of, type_into)
 
-REPO = Path(__file__).resolve().parents[1]
-MAP = REPO / "maps" / "paper-8x6"
 SIZE = (160, 48)
 
-pytestmark = pytest.mark.skipif(not (MAP / "reference.png").is_file(), reason="maps/paper-8x6 not built")
-
-
-@pytest.fixture(autouse=True)
-def _in_repo(monkeypatch):
-    # paths on screen are shown relative to the working folder
-    monkeypatch.chdir(REPO)
+pytestmark = needs_map
 
 
 @aio

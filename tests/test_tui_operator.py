@@ -35,21 +35,14 @@ from sbplan.tui.widgets.keys import KeyFooter  # noqa: E402
 from sbplan.tui.widgets.mapview import MapView  # noqa: E402
 from sbplan.tui.widgets.zoomview import ZoomView  # noqa: E402
 
-from _tui import RunningApp, aio, error_messages, settle, text_of, type_into  # noqa: E402
+from _tui import (MAP, REPO, RunningApp, aio, error_messages, in_repo,  # noqa: E402,F401 (in_repo: autouse)
+                  needs_map, settle, text_of, type_into)
 
-REPO = Path(__file__).resolve().parents[1]
-MAP = REPO / "maps" / "paper-8x6"
 #: The terminal size of these tests: what they assert holds at any size, and a small terminal
 #: draws quickest (tests/test_tui_snapshots.py keeps the pictures at 80 x 24 and 140 x 45).
 SMALL = (80, 24)
 
-pytestmark = pytest.mark.skipif(not (MAP / "reference.png").is_file(), reason="maps/paper-8x6 not built")
-
-
-@pytest.fixture(autouse=True)
-def _in_repo(monkeypatch):
-    # paths on screen are shown relative to the working folder
-    monkeypatch.chdir(REPO)
+pytestmark = needs_map
 
 
 async def to_route(app, pilot) -> None:
