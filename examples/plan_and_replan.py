@@ -26,7 +26,7 @@ def show(what, route):
 #    world frame from the map's workspace.toml), then detect the obstacles on a scene.
 calibration = sbplan.calibrate(f"{MAP}/reference.png", workspace=MAP)
 detection = sbplan.detect(f"{MAP}/scene-01.png", calibration)
-obstacles = detection_obstacles(detection)  # each obstacle's minimum-area rectangle, in metres
+obstacles = detection_obstacles(detection)  # under the default obstacle model (parts), in metres
 print(f"{len(obstacles.polygons)} obstacles; workspace (xmin, ymin, xmax, ymax) = "
       f"({', '.join(f'{v:.2f}' for v in obstacles.bounds)})")
 

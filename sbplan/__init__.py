@@ -22,10 +22,11 @@ from .errors import (  # noqa: F401  (re-exported)
     UnknownStageError,
 )
 
+#: The one place the version is written: pyproject.toml reads it (setuptools' dynamic version),
+#: ``sbplan --version`` prints it.
 __version__ = "0.1.0"
 
-# A library logs and never prints: without a handler set up by the application (the CLI sets one
-# up with -v), sbplan's log records go nowhere.
+# The library logs and never prints (sbplan.logs); without a handler of the program's own, nothing shows.
 logging.getLogger("sbplan").addHandler(logging.NullHandler())
 
 #: public name -> module that defines it

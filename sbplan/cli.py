@@ -9,10 +9,11 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import logging
 import re
 import sys
-import traceback
 
+from . import __version__
 from .errors import EXIT_CODES, SbplanError
 
 #: Subcommand name -> module, in the order ``sbplan --help`` lists them.
@@ -50,8 +51,8 @@ def build_parser(selected: str | None = None) -> argparse.ArgumentParser:
         epilog="exit codes:\n" + "\n".join(f"  {k:>3}  {v}" for k, v in EXIT_CODES.items()),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("-v", "--verbose", action="store_true",
-                        help="show tracebacks and library log lines (OMPL) on errors (also after the command)")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    _log_options(parser, None)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name, module_name in COMMANDS.items():
         module = import_command(module_name)
@@ -68,13 +69,31 @@ def build_parser(selected: str | None = None) -> argparse.ArgumentParser:
     return parser
 
 
+def _log_options(parser: argparse.ArgumentParser, default: object) -> None:
+    """-v, -q and --log-json: how much of the log (sbplan.logs) shows on stderr, and in which form.
+    ``default`` None: the top level's defaults; SUPPRESS: a command's copy leaves them alone (and
+    an option string the command uses itself, such as a ``-q`` of its own, is left to it)."""
+    taken = {s for a in parser._actions for s in a.option_strings}
+
+    def add(flags: tuple[str, ...], **kw: object) -> None:
+        free = [f for f in flags if f not in taken]
+        if free:
+            parser.add_argument(*free, **kw)  # type: ignore[arg-type]
+
+    add(("-v", "--verbose"), action="count", default=0 if default is None else default,
+        help="more log lines on stderr: -v what was done (and OMPL's log, plugins that failed to load, "
+             "tracebacks on errors), -vv stages and timings (also after the command)")
+    add(("-q", "--quiet"), action="store_true", default=False if default is None else default,
+        help="errors only on stderr (no warnings)")
+    add(("--log-json",), action="store_true", default=False if default is None else default,
+        help="log lines (warnings, errors, -v's) as one JSON object each, for machines")
+
+
 def _verbose_everywhere(sub: argparse._SubParsersAction) -> None:
-    """``-v`` after the command (and after a subcommand's action) as well as before it. SUPPRESS:
-    not given there, it leaves the top-level value alone."""
+    """-v, -q and --log-json after the command (and after a subcommand's action) as well as before
+    it. SUPPRESS: not given there, they leave the top-level values alone."""
     for p in set(sub.choices.values()):
-        if not any("-v" in a.option_strings for a in p._actions):
-            p.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS,
-                           help="show tracebacks and library log lines on errors")
+        _log_options(p, argparse.SUPPRESS)
         for a in p._actions:
             if isinstance(a, argparse._SubParsersAction):
                 _verbose_everywhere(a)
@@ -108,25 +127,21 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "_run", None):
         parser.print_help()
         return 2
-    if args.verbose:
-        import logging
+    from .logs import configure
 
-        handler = logging.StreamHandler(sys.stderr)
-        handler.setFormatter(logging.Formatter("sbplan: %(levelname)s: %(message)s"))
-        logging.getLogger("sbplan").addHandler(handler)
-        logging.getLogger("sbplan").setLevel(logging.INFO)
+    undo = configure(verbosity=args.verbose, quiet=args.quiet, json_lines=args.log_json)
     try:
         return int(args._run(args) or 0)
     except SbplanError as exc:
-        if args.verbose:
-            traceback.print_exc()
-        print(f"sbplan: error: {exc}", file=sys.stderr)
+        logging.getLogger("sbplan.cli").error(str(exc), exc_info=exc if args.verbose else None)
         return exc.exit_code
     except KeyboardInterrupt:
         print("sbplan: interrupted", file=sys.stderr)
         return 130
     except BrokenPipeError:
         return 0
+    finally:
+        undo()
 
 
 if __name__ == "__main__":  # pragma: no cover

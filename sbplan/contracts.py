@@ -13,7 +13,7 @@ concrete stage with ``@dataclass(kw_only=True)`` and declare each option with :f
 Instances are cheap, immutable in spirit and safe to share between threads.
 
 The detection pipeline runs, per image: binarizer -> extractor -> length filter -> approximator ->
-matcher -> occupancy mapper. Planners turn obstacles into routes.
+matcher -> occupancy mapper -> footprint. Planners turn obstacles into routes.
 """
 
 from __future__ import annotations
@@ -38,7 +38,7 @@ if typing.TYPE_CHECKING:
     from .detection.bands import RowBands
 
 #: The stage kinds, in pipeline order.
-KINDS = ("binarizer", "extractor", "approximator", "matcher", "mapper", "planner")
+KINDS = ("binarizer", "extractor", "approximator", "matcher", "mapper", "footprint", "planner")
 
 
 def option(default: Any, help: str, **kwargs: Any) -> Any:
@@ -78,6 +78,9 @@ class Stage(ABC):
     kind: ClassVar[str] = ""
     name: ClassVar[str] = ""
     description: ClassVar[str] = ""
+    #: Other names the registry finds the stage under (a library's own name for it, such as
+    #: OMPL's ``RRTstar`` for ``rrt-star``); listings show ``name`` only.
+    aliases: ClassVar[tuple[str, ...]] = ()
 
     @classmethod
     def options(cls) -> list[OptionInfo]:
@@ -269,6 +272,57 @@ class OccupancyMapper(Stage):
         """
 
 
+class FootprintRefiner(Stage):
+    """Draws each obstacle's outline: from the occupied cells alone, or refined from the pixels in
+    and around them.
+
+    The cells stay the decision of *where* obstacles are (the paper's occupancy); a footprint
+    stage decides how far each one reaches. Detection calls :meth:`prepare` once per detector
+    (per calibration) and :meth:`outlines` once per frame.
+    """
+
+    kind = "footprint"
+    #: The footprint stage (by name) detection uses instead when :meth:`prepare` returns None:
+    #: a stage that needs something old calibration files lack names its fallback here.
+    fallback: ClassVar[str | None] = None
+
+    def prepare(self, calibration: Any) -> Any:
+        """The per-calibration work, done once per :class:`~sbplan.detection.Detector`: what
+        :meth:`outlines` reads on every frame. The default prepares nothing (None).
+
+        A stage that cannot work with ``calibration`` (a file written before what it needs was
+        stored) returns None and sets :attr:`fallback`; detection then uses that stage instead.
+        """
+        return None
+
+    @abstractmethod
+    def outlines(self, gray: np.ndarray, occupied: np.ndarray, occupancy: np.ndarray, calibration: Any,
+                 camera: Any, prepared: Any) -> list[np.ndarray]:
+        """The obstacles' outlines of one frame.
+
+        Parameters
+        ----------
+        gray : ndarray of shape (H, W), uint8
+            The frame, as the camera sees it now (it may have moved since calibration).
+        occupied : ndarray of shape (rows, cols), bool
+            The occupied cells, ``[row, col]``.
+        occupancy : ndarray of shape (H, W), uint8
+            The mapper's occupancy image (0 occupied), in calibration pixels.
+        calibration : sbplan.detection.calibration.Calibration
+        camera : sbplan.detection.registration.CameraMotion
+            Calibration pixels -> the frame's pixels (``camera.to_frame``).
+        prepared : object
+            What :meth:`prepare` returned for this calibration.
+
+        Returns
+        -------
+        list of ndarray of shape (K, 2), float64
+            Closed outlines ``(x, y)`` in calibration pixels (first vertex not repeated, K >= 3),
+            simple polygons that do not overlap. Every occupied cell's hidden symbol should lie in
+            one of them; detection adds the cell for any occupied cell no outline reaches.
+        """
+
+
 class Planner(Stage):
     """Plans a collision-free route among polygonal obstacles."""
 
@@ -289,6 +343,7 @@ CONTRACTS: dict[str, type[Stage]] = {
     "approximator": ContourApproximator,
     "matcher": DescriptorMatcher,
     "mapper": OccupancyMapper,
+    "footprint": FootprintRefiner,
     "planner": Planner,
 }
 

@@ -208,7 +208,14 @@ def load_image(path: str | os.PathLike) -> np.ndarray:
     """Read an image file as 8-bit grayscale, shape (H, W). 16-bit files are scaled.
 
     The image's size is read from its header and checked against the ``image_pixels`` limit
-    (:mod:`sbplan.limits`) before it is decoded.
+    (:mod:`sbplan.limits`) before it is decoded (:func:`read_image`).
+    """
+    return as_gray(read_image(path), name=str(Path(path)))
+
+
+def read_image(path: str | os.PathLike) -> np.ndarray:
+    """Read an image file as it is stored: (H, W) grey or (H, W, C) BGR(A), 8 or 16 bits (a nav2
+    map's alpha channel and bit depth matter). Checked as :func:`load_image` checks it.
 
     A damaged PNG or JPEG (cut short, a chunk's checksum wrong) is refused saying so, and nothing
     else is printed: OpenCV's and the PNG and JPEG libraries' own messages are kept off stderr.
@@ -258,11 +265,16 @@ def load_image(path: str | os.PathLike) -> np.ndarray:
     h, w = image.shape[:2]
     if h * w > top:  # a format whose header was not read: checked after decoding
         limits.check("image_pixels", h * w, f"{p}: {w} x {h} pixels", "give a smaller image")
-    return as_gray(image, name=str(p))
+    if image.size == 0:
+        raise ImageError(f"{p}: empty image")
+    return image
 
 
-def encode_image(path: str | os.PathLike, image: np.ndarray) -> bytes:
+def encode_image(path: str | os.PathLike, image: np.ndarray, *, text: dict[str, str] | None = None) -> bytes:
     """``image`` encoded in the format the file name's ending names (PNG, PGM, JPEG, ...).
+
+    ``text``: keyword -> value pairs the file carries about itself (what :func:`image_text`
+    reads): PNG ``tEXt`` chunks, or comment lines in a PGM/PPM header; other formats carry none.
 
     Raises
     ------
@@ -277,9 +289,59 @@ def encode_image(path: str | os.PathLike, image: np.ndarray) -> bytes:
         ok = False
     if not ok:
         raise OutputError(f"{p}: cannot write images ending in {ext!r}; use .png, .pgm, .jpg, .bmp or .tif")
-    return buf.tobytes()
+    data = buf.tobytes()
+    return _with_text(data, ext, text) if text else data
 
 
-def write_image(path: str | os.PathLike, image: np.ndarray) -> Path:
-    """Write an image (PNG, PGM, JPEG… by the file's ending) atomically."""
-    return write_atomic(path, encode_image(path, image))
+def write_image(path: str | os.PathLike, image: np.ndarray, *, text: dict[str, str] | None = None) -> Path:
+    """Write an image (PNG, PGM, JPEG… by the file's ending) atomically, with ``text`` as
+    :func:`encode_image` writes it."""
+    return write_atomic(path, encode_image(path, image, text=text))
+
+
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def _with_text(data: bytes, ext: str, text: dict[str, str]) -> bytes:
+    if ext == ".png" and data.startswith(_PNG_SIGNATURE):
+        chunks = b""
+        for key, value in text.items():
+            body = key.encode("latin-1") + b"\0" + value.encode("latin-1", "replace")
+            chunks += (struct.pack(">I", len(body)) + b"tEXt" + body
+                       + struct.pack(">I", zlib.crc32(b"tEXt" + body) & 0xFFFFFFFF))
+        ihdr_end = 8 + 8 + struct.unpack(">I", data[8:12])[0] + 4  # signature, IHDR's length+type, data, CRC
+        return data[:ihdr_end] + chunks + data[ihdr_end:]
+    if ext in (".pgm", ".ppm", ".pnm", ".pbm") and data[:1] == b"P":
+        magic, rest = data.split(b"\n", 1)
+        comments = b"".join(f"# {k}: {v}\n".encode("latin-1", "replace") for k, v in text.items())
+        return magic + b"\n" + comments + rest
+    return data
+
+
+def image_text(path: str | os.PathLike) -> dict[str, str]:
+    """What an image file says about itself: a PNG's ``tEXt`` chunks, or ``# key: value``
+    comment lines of a PGM/PPM header (as :func:`write_image` writes them). Empty for other
+    files, or when the file cannot be read."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(1 << 16)
+    except OSError:
+        return {}
+    out: dict[str, str] = {}
+    if head.startswith(_PNG_SIGNATURE):
+        i = 8
+        while i + 8 <= len(head):
+            n = struct.unpack(">I", head[i:i + 4])[0]
+            kind = head[i + 4:i + 8]
+            if kind in (b"IDAT", b"IEND") or i + 8 + n > len(head):
+                break
+            if kind == b"tEXt":
+                raw_key, _, raw_value = head[i + 8:i + 8 + n].partition(b"\0")
+                out[raw_key.decode("latin-1")] = raw_value.decode("latin-1")
+            i += 12 + n
+    elif head[:1] == b"P" and head[1:2] in b"123456":
+        for line in head.split(b"\n")[1:8]:
+            if line.startswith(b"#") and b":" in line:
+                key, _, value = line[1:].decode("latin-1").partition(":")
+                out[key.strip()] = value.strip()
+    return out

@@ -2,7 +2,7 @@
 
 ``sbplan.registry.matcher("fourier")`` returns a ready instance of the matcher registered as
 ``fourier``; ``matcher_names()`` lists the installed names. The same pair exists for every kind:
-``binarizer``, ``extractor``, ``approximator``, ``matcher``, ``mapper``, ``planner``.
+``binarizer``, ``extractor``, ``approximator``, ``matcher``, ``mapper``, ``footprint``, ``planner``.
 
 Plugins are found through the ``sbplan`` entry-point group, built-in ones included. A plugin that
 fails to import is recorded in :func:`load_errors` (and shown by ``sbplan plugins``) and the others
@@ -56,6 +56,7 @@ class StageRegistry:
 
     def __init__(self) -> None:
         self._stages: dict[tuple[str, str], StageInfo] = {}
+        self._aliases: dict[tuple[str, str], str] = {}  # (kind, alias) -> name
         self._symbols: dict[str, SymbolInfo] = {}
         self.failures: list[LoadFailure] = []
         self._origin = "sbplan"
@@ -73,11 +74,19 @@ class StageRegistry:
             raise PluginError(f"{kind} {cls.name!r} is registered twice "
                               f"({self._stages[key].origin} and {origin or self._origin})")
         description = cls.description or (cls.__doc__ or "").strip().split("\n")[0]
+        for alias in getattr(cls, "aliases", ()):
+            taken = self._aliases.get((kind, alias))
+            if (kind, alias) in self._stages or (taken is not None and taken != cls.name and not replace):
+                raise PluginError(f"{kind} {cls.name!r}: alias {alias!r} is already a {kind}'s name")
         self._stages[key] = StageInfo(kind, cls.name, cls, origin or self._origin, description)
+        for alias in getattr(cls, "aliases", ()):
+            self._aliases[(kind, alias)] = cls.name
         return cls
 
     def remove(self, kind: str, name: str) -> None:
         self._stages.pop((kind, name), None)
+        for key in [k for k, v in self._aliases.items() if k[0] == kind and v == name]:
+            del self._aliases[key]
 
     def add_symbol(self, name: str, polygon: Any, *, description: str = "", origin: str | None = None,
                    replace: bool = False) -> None:
@@ -93,8 +102,8 @@ class StageRegistry:
     def info(self, kind: str, name: str) -> StageInfo:
         _check_kind(kind)
         try:
-            return self._stages[(kind, name)]
-        except KeyError:
+            return self._stages[(kind, self._aliases.get((kind, name), name))]
+        except (KeyError, TypeError):
             raise UnknownStageError(kind, name, self.names(kind),
                                     [f"{f.plugin} ({f.error})" for f in self.failures]) from None
 
@@ -107,13 +116,15 @@ class StageRegistry:
             return name
         info = self.info(kind, name)
         try:
-            return info.cls(**options)
+            stage = info.cls(**options)
         except TypeError as exc:
             raise PluginError(f"{kind} {name!r}: bad options ({exc})") from None
         except SbplanError:
             raise
         except Exception as exc:  # a plugin's constructor that fails: named, not a traceback
             raise StageError(kind, name, info.origin, f"cannot be made: {type(exc).__name__}: {exc}") from exc
+        _log.debug("%s %s%s", kind, info.cls.name, f" {options}" if options else "")
+        return stage
 
     def all(self) -> list[StageInfo]:
         order = {k: i for i, k in enumerate(KINDS)}
@@ -235,4 +246,5 @@ extractor, extractor_names = _lookup_pair("extractor")
 approximator, approximator_names = _lookup_pair("approximator")
 matcher, matcher_names = _lookup_pair("matcher")
 mapper, mapper_names = _lookup_pair("mapper")
+footprint, footprint_names = _lookup_pair("footprint")
 planner, planner_names = _lookup_pair("planner")

@@ -26,7 +26,11 @@ def test_demo_on_the_paper_floor(tmp_path):
     assert route["status"] == "exact"
     path = shapely.LineString(route["waypoints"])
     for ob in result["obstacles"]:
-        # the route keeps the robot's radius from every detected obstacle (MAR), with a hair of slack
-        assert path.distance(shapely.Polygon(ob["mar_m"])) >= result["workspace"]["robot_radius_m"] - 1e-6
+        # the route keeps the robot's radius from every detected obstacle as the planner had it (the
+        # default obstacle model's parts, which hold the footprint), with a hair of slack
+        for part in ob["parts_m"]:
+            assert path.distance(shapely.Polygon(part)) >= result["workspace"]["robot_radius_m"] - 1e-6
+        assert shapely.union_all([shapely.Polygon(p) for p in ob["parts_m"]]).buffer(1e-6).contains(
+            shapely.Polygon(ob["outline_m"]))
     for name in ("calibration.json", "overlay.png", "occupancy.png", "obstacles.geojson", "nav2/map.yaml", "nav2/map.pgm"):
         assert (tmp_path / name).is_file(), name

@@ -83,12 +83,14 @@ def test_lighting_blobs_and_boxes_are_never_symbols(calibration, reference):
 
 def test_result_json_obstacles_and_both_mar_implementations(calibration):
     image, truth = render_scene(FLOOR, SceneSpec(n_obstacles=3), seed=5)
-    result = detect(image, calibration)
+    # the paper's footprint: obstacles are unions of cells (tests/test_footprints.py: the pixels')
+    result = detect(image, calibration, footprint="cells")
     data = json.loads(json.dumps(result.to_json()))
     assert data["symbols_expected"] == 40
     assert data["symbols_found"] + data["symbols_rescued"] + len(data["occupied_cells"]) == 40
     assert data["free_cells"] == 40 - len(data["occupied_cells"])
-    assert set(data["timings_ms"]) >= {"binarize", "extract", "describe", "map", "obstacles", "total"}
+    assert set(data["timings_ms"]) >= {"binarize", "extract", "describe", "map", "footprint", "obstacles", "total"}
+    assert data["stages"]["footprint"] == "cells"
     cells = sorted(tuple(c) for ob in data["obstacles"] for c in ob["cells"])
     assert cells == sorted(map(tuple, data["occupied_cells"]))
     for ob in result.obstacles:
@@ -108,7 +110,8 @@ def test_outputs_geojson_and_nav2(calibration, tmp_path):
     export.write_geojson(tmp_path / "o.geojson", result)
     gj = json.loads((tmp_path / "o.geojson").read_text())
     assert gj["type"] == "FeatureCollection"
-    assert {f["properties"]["kind"] for f in gj["features"]} == ({"mar", "outline"} if result.obstacles else set())
+    assert {f["properties"]["kind"] for f in gj["features"]} == ({"part", "outline"} if result.obstacles else set())
+    assert gj["sbplan"]["obstacle_model"] == "parts"
     for f in gj["features"]:
         ring = f["geometry"]["coordinates"][0]
         assert ring[0] == ring[-1] and shapely.Polygon(ring).exterior.is_ccw
@@ -119,9 +122,9 @@ def test_outputs_geojson_and_nav2(calibration, tmp_path):
     assert res == pytest.approx(0.05) and meta["mode"] == "trinary"
     xmin, ymin, xmax, ymax = calibration.world_bounds()
     assert pgm.shape == (round((ymax - ymin) / res), round((xmax - xmin) / res))
-    # row flip: cell (row 0, col c) is at the top of the PGM, whatever its world y
-    for r, c in result.occupied_cells:
-        x, y = calibration.workspace.lattice_to_world(np.array([[c, r]]), calibration.grid.rows)[0]
+    # row flip: what the planner avoids near the top of the floor is at the top of the PGM
+    for p in result.planner_obstacles("parts"):
+        x, y = shapely.Polygon(p).representative_point().coords[0]
         col, row = int((x - xmin) / res), int(pgm.shape[0] - (y - ymin) / res)
         assert pgm[row, col] == 0
     assert (pgm == 254).sum() > 0

@@ -53,3 +53,35 @@ def test_hookspec_is_tested(name):
     users = [p.name for p in (ROOT / "tests").glob("test_*.py")
              if p.resolve() != here and re.search(rf"def {name}\(", p.read_text(encoding="utf-8"))]
     assert users, f"no test module implements {name}"
+
+
+# -- stage kinds: sbplan_register_stages takes a class of every kind; each is documented and has a
+#    contract suite in the plugin kit, like the hooks above
+from sbplan.contracts import CONTRACTS, KINDS  # noqa: E402
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_stage_kind_is_documented_in_the_guides_contract_table(kind):
+    text = GUIDE.read_text(encoding="utf-8")
+    section = text.split("## Stage contracts", 1)[1].split("\n## ", 1)[0]
+    assert re.search(rf"^\| {kind} \|", section, re.M), f"docs/plugin-guide.md's contract table has no '{kind}' row"
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_stage_kind_has_a_contract_suite_and_checks(kind):
+    import sbplan.testing as kit
+
+    assert kit.CHECKS.get(kind), f"sbplan.testing.CHECKS has no checks for {kind}"
+    suites = [getattr(kit, n) for n in kit.__all__ if n.endswith("Contract") and n != "StageContract"]
+    assert any(getattr(s, "kind", None) == kind for s in suites), f"sbplan.testing has no contract suite for {kind}"
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_stage_kind_is_implemented_by_a_test_stage(kind):
+    """A test module defines a stage of the kind (its contract's class as a base): the registry's
+    kind comes from the class, and the kit's checks are run on it."""
+    here = Path(__file__).resolve()
+    name = CONTRACTS[kind].__name__
+    users = [p.name for p in (ROOT / "tests").glob("test_*.py")
+             if p.resolve() != here and re.search(rf"class \w+\({name}\)", p.read_text(encoding="utf-8"))]
+    assert users, f"no test module defines a {name} subclass"

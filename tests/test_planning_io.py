@@ -42,35 +42,31 @@ def detection_files(tmp_path_factory):
     return out, det
 
 
-def cell_squares(det):
-    cal = det.calibration
-    sq = []
-    for r, c in det.occupied_cells:
-        w = cal.workspace.lattice_to_world(np.array([[c - 0.5, r - 0.5], [c + 0.5, r + 0.5]]), cal.grid.rows)
-        sq.append(box(*w.min(0), *w.max(0)))
-    return shapely.union_all(sq)
-
-
-def test_detection_json_and_geojson_give_the_mars_and_the_bounds(detection_files):
+def test_detection_json_and_geojson_give_the_planners_polygons_and_the_bounds(detection_files):
     out, det = detection_files
-    want = [shapely.Polygon(ob.mar_m) for ob in det.obstacles]
-    for name in ("result.json", "obstacles.geojson"):
-        got = load_obstacles(out / name)
-        assert got.bounds == pytest.approx(det.calibration.world_bounds(), abs=1e-6)
-        assert len(got.polygons) == len(want) == 3
-        for p in got.polygons:
-            # The files round coordinates to 1e-6 m.
-            assert min(p.hausdorff_distance(q) for q in want) < 2e-6
+    assert len(det.obstacles) == 3
+    for model in ("parts", "mar"):
+        want = [shapely.Polygon(p) for p in det.planner_obstacles(model)]
+        for name in ("result.json", "obstacles.geojson"):
+            if name.endswith("geojson") and model != "parts":
+                continue  # the GeoJSON holds the model it was written with
+            got = load_obstacles(out / name, obstacle_model=model) if name == "result.json" else load_obstacles(out / name)
+            assert got.bounds == pytest.approx(det.calibration.world_bounds(), abs=1e-6)
+            assert len(got.polygons) == len(want) >= 3
+            for p in got.polygons:
+                # The files round coordinates to 1e-6 m.
+                assert min(p.hausdorff_distance(q) for q in want) < 2e-6
+    mars = shapely.union_all([shapely.Polygon(ob.mar_m) for ob in det.obstacles])
     outlines = load_obstacles(out / "result.json", use="outline").polygons
-    assert shapely.union_all(outlines).area < shapely.union_all(want).area
+    assert shapely.union_all(outlines).area < mars.area
 
 
 def test_a_detection_and_its_json_give_the_same_obstacles(detection_files):
     out, det = detection_files
-    for use, key in (("mar", "mar_m"), ("outline", "outline_m")):
+    for use, key in (("mar", "mar_m"), ("parts", "parts_m"), ("outline", "outline_m")):
         live = detection_obstacles(det, use=use)
         assert [np.asarray(p.exterior.coords)[:-1].tolist() for p in live.polygons] == \
-            [getattr(ob, key).tolist() for ob in det.obstacles]
+            [np.asarray(q).tolist() for ob in det.obstacles for q in ob.polygons_m(use)]
         assert live.bounds == det.calibration.world_bounds()
         stored = detection_obstacles(json.loads((out / "result.json").read_text()), use=use, source="result.json")
         assert stored.bounds == pytest.approx(live.bounds, abs=1e-6) and stored.source == "result.json"
@@ -85,12 +81,15 @@ def test_a_detection_and_its_json_give_the_same_obstacles(detection_files):
         detection_obstacles([np.zeros((4, 2))])
 
 
-def test_nav2_map_gives_exactly_the_occupied_cells(detection_files):
+def test_nav2_map_holds_the_planners_polygons_to_a_pixel(detection_files):
     out, det = detection_files
     got = load_obstacles(out / "nav2" / "map.yaml")
     assert got.bounds == pytest.approx(det.calibration.world_bounds(), abs=1e-6)
     union = shapely.union_all(got.polygons)
-    assert union.symmetric_difference(cell_squares(det)).area < 1e-6
+    want = shapely.union_all([shapely.Polygon(p) for p in det.planner_obstacles()])
+    res = min(det.calibration.workspace.pitch_m) / 10
+    assert want.difference(union).area < 1e-9  # every pixel a polygon touches is occupied
+    assert union.difference(want.buffer(2 * res, join_style="mitre")).area < 1e-9
     # A route between the map's start and goal on the nav2 obstacles keeps the radius.
     ws = det.calibration.workspace
     pm = PlanningMap(got.polygons, robot_radius=ws.robot_radius_m, bounds=got.bounds)
@@ -137,7 +136,7 @@ def test_occupancy_rectangles_with_resolution_and_origin():
     ("", "not valid JSON"),
     ("{\"type\": \"FeatureCollection\", \"features\": [{\"type\": \"Feature\", \"geometry\": "
      "{\"type\": \"Point\", \"coordinates\": [1, 2]}}]}", "expected Polygon"),
-    ("{\"format\": \"sbplan.detection/1\", \"obstacles\": [{\"id\": 1}]}", "mar_m"),
+    ("{\"format\": \"sbplan.detection/1\", \"obstacles\": [{\"id\": 1}]}", "parts_m"),
     ("[1, 2]", "neither a GeoJSON"),
 ])
 def test_bad_obstacle_files_raise_map_format_errors(tmp_path, content, fragment):

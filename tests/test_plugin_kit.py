@@ -15,9 +15,11 @@ import pytest
 
 from sbplan import registry as plugins
 from sbplan.contours import Contour
-from sbplan.contracts import Binarizer, ContourExtractor, DescriptorMatcher, Planner
+from sbplan.contracts import (Binarizer, ContourApproximator, ContourExtractor, DescriptorMatcher, FootprintRefiner,
+                              OccupancyMapper, Planner)
 from sbplan.errors import UnknownStageError
-from sbplan.testing import (CHECKS, ApproximatorContract, BinarizerContract, ExtractorContract, MapperContract,
+from sbplan.testing import (CHECKS, ApproximatorContract, BinarizerContract, ExtractorContract, FootprintContract,
+                            MapperContract,
                             MatcherContract, PlannerContract, calibrated_pipeline, check_stage, register_stage,
                             registered, sample_outlines, tiny_floor)  # noqa: F401  (fixtures are used by name)
 
@@ -68,6 +70,10 @@ class TestCellsByName(MapperContract):
 
 class TestAuxCornerByName(PlannerContract):
     stage_name = "aux-corner"
+
+
+class TestPixelsFootprintByName(FootprintContract):
+    stage_name = "pixels"
 
 
 # -- the checks fail on broken stages --------------------------------------------------------------
@@ -124,7 +130,43 @@ class StraightLinePlanner(Planner):
         return Route(np.stack([problem.start, problem.goal]), planner=self.name)
 
 
+@dataclass(kw_only=True, frozen=True)
+class ReversedApproximator(ContourApproximator):
+    name = "test-reversed"
+    description = "a broken approximator: the contour's points in the opposite traversal sense"
+
+    def approximate(self, contour):
+        return np.asarray(contour.points, float)[::-1].copy()
+
+
+@dataclass(kw_only=True, frozen=True)
+class InvertedMapper(OccupancyMapper):
+    name = "test-inverted"
+    description = "a broken mapper: occupied cells white, everything else black"
+
+    def occupancy_image(self, grid, occupied, shape):
+        from sbplan_mappers.cells import CellsMapper
+
+        return 255 - CellsMapper().occupancy_image(grid, occupied, shape)
+
+
+@dataclass(kw_only=True, frozen=True)
+class OneCellFootprint(FootprintRefiner):
+    name = "test-one-cell"
+    description = "a broken footprint: the first occupied cell's centre as a dot, whatever else is occupied"
+
+    def outlines(self, gray, occupied, occupancy, calibration, camera, prepared):
+        rows, cols = np.nonzero(occupied)
+        if not len(rows):
+            return []
+        x, y = calibration.grid.centres_px[rows[0], cols[0]]
+        return [np.array([[x, y], [x + 1, y], [x, y + 1]])] * 2
+
+
 @pytest.mark.parametrize("stage, broken_check", [
+    (OneCellFootprint(), "check_footprint_outlines"),
+    (ReversedApproximator(), "check_approximator_rectangle"),
+    (InvertedMapper(), "check_mapper"),
     (LopsidedMatcher(), "check_matcher_distances"),
     (AspectMatcher(), "check_matcher_invariance"),
     (OpenContourExtractor(), "check_extractor_rectangle"),

@@ -80,8 +80,8 @@ async def test_whole_job_calibrate_detect_plan_replan_export(tmp_path):
         assert route.status == "exact" and len(route.waypoints) >= 2
         np.testing.assert_allclose(route.waypoints[0], cal.workspace.start_m)
         np.testing.assert_allclose(route.waypoints[-1], cal.workspace.goal_m)
-        mars = [Polygon(o.mar_m) for o in det.obstacles]
-        assert min(LineString(route.waypoints).distance(m) for m in mars) >= radius - 1e-6
+        avoided = [Polygon(p) for p in app.session.obstacles_m()]  # the obstacle model's polygons
+        assert min(LineString(route.waypoints).distance(m) for m in avoided) >= radius - 1e-6
         assert f"{route.length:.2f} m" in text_of(app, "#route-info")
 
         # a dynamic obstacle on the route, ahead of the robot, placed with a click on the map
@@ -98,7 +98,7 @@ async def test_whole_job_calibrate_detect_plan_replan_export(tmp_path):
         np.testing.assert_allclose(new.waypoints[-1], cal.workspace.goal_m)
         new_line = LineString(new.waypoints)
         assert new_line.distance(square) >= radius - 1e-6
-        assert min(new_line.distance(m) for m in mars) >= radius - 1e-6
+        assert min(new_line.distance(m) for m in avoided) >= radius - 1e-6
         assert view.scene["old_route"] is not None and view.scene["route"] is not None
         assert "old route" in text_of(app, "#route-info")
         assert not error_messages(app)
@@ -166,7 +166,7 @@ async def test_bad_paths_unreadable_images_and_unreachable_goals_leave_the_app_u
         # a goal inside an obstacle, then a goal walled off by dynamic obstacles
         await pilot.press("3")
         await settle(app, pilot)
-        inside = np.asarray(det.obstacles[0].mar_m).mean(axis=0)
+        inside = Polygon(app.session.obstacles_m()[0]).representative_point().coords[0]
         await type_into(pilot, "#goal", f"{inside[0]:.3f}, {inside[1]:.3f}")
         await pilot.press("enter")
         app.screen.query_one("#map").focus()

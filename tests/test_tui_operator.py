@@ -23,6 +23,7 @@ from shapely.geometry import LineString, Polygon  # noqa: E402
 from textual.widgets import Input, ProgressBar, Select  # noqa: E402
 from textual.widgets._footer import FooterKey  # noqa: E402
 
+from sbplan.detection.obstacles import DEFAULT_OBSTACLE_MODEL  # noqa: E402
 from sbplan.tui.app import SbplanApp  # noqa: E402
 from sbplan.tui.screens.base import JobScreen  # noqa: E402
 from sbplan.tui.screens.confirm import ConfirmScreen  # noqa: E402
@@ -60,7 +61,7 @@ def untouched(app) -> bool:
     s = app.session
     return (len(app.screen_stack) == 1 and isinstance(app.screen, JobScreen) and not app.screen.running
             and s.route is not None and s.old_route is None
-            and s.route_invalid is None and s.dynamic == [] and s.obstacle_model == "mar")
+            and s.route_invalid is None and s.dynamic == [] and s.obstacle_model == DEFAULT_OBSTACLE_MODEL)
 
 
 @pytest.fixture(scope="module")
@@ -264,35 +265,38 @@ def test_the_obstacle_model_has_the_cli_names_and_routes_follow_it(routed):
 
     plan_parser = next(a for a in build_parser("plan")._actions
                        if isinstance(a, argparse._SubParsersAction)).choices["plan"]
-    cli_names = next(a for a in plan_parser._actions if "--use" in a.option_strings).choices
+    cli_names = next(a for a in plan_parser._actions if "--obstacle-model" in a.option_strings).choices
 
     async def body(app, pilot):
         await app.switch_mode("route")
         await pilot.pause()
-        s = app.session
+        s, view = app.session, app.screen.query_one("#map", MapView)
         select = app.screen.query_one("#obstacle-model", Select)
-        assert {value for _, value in select._options} == set(cli_names)
-        assert select.value == "mar" == s.obstacle_model
-        around_mars = s.route
+        assert [value for _, value in select._options] == list(cli_names) == ["mar", "parts", "outline"]
+        assert select.value == DEFAULT_OBSTACLE_MODEL == s.obstacle_model == "parts"
+        radius = s.calibration.workspace.robot_radius_m
+        routes = {}
+        # m cycles the models in the CLI's order, the list shows the one in use, the route follows
+        for model in ("outline", "mar", "parts"):
+            before = s.route
+            await pilot.press("m")
+            await settle(app, pilot)
+            assert s.obstacle_model == model == select.value and s.route is not before, model
+            avoided = [Polygon(p) for ob in s.detection.obstacles for p in ob.polygons_m(model)]
+            assert [Polygon(p).equals(a) for p, a in zip(s.obstacles_m(), avoided)] == [True] * len(avoided), model
+            assert [Polygon(p).equals(a) for p, a in zip(view.scene["obstacles"], avoided)] == [True] * len(avoided)
+            assert len(view.scene["clearance"]) >= 1, model
+            assert min(LineString(s.route.waypoints).distance(a) for a in avoided) >= radius - 1e-6, model
+            routes[model] = s.route.length
+        # an outline lies inside its MAR and inside its parts: the route around outlines is never longer
+        assert routes["outline"] <= min(routes["mar"], routes["parts"]) + 1e-9
+        # chosen in the list: the same
         select.value = "outline"
         await settle(app, pilot)
-        assert s.obstacle_model == "outline" and s.route is not around_mars
-        outlines = [Polygon(ob.outline_m) for ob in s.detection.obstacles]
-        assert [Polygon(p).equals(o) for p, o in zip(s.obstacles_m(), outlines)] == [True] * len(outlines)
-        radius = s.calibration.workspace.robot_radius_m
-        line = LineString(s.route.waypoints)
-        assert min(line.distance(o) for o in outlines) >= radius - 1e-6
-        # an outline lies inside its MAR: the route around outlines is never longer
-        assert s.route.length <= around_mars.length + 1e-9
-        drawn = app.screen.query_one("#map", MapView).scene["obstacles"]
-        assert [Polygon(p).equals(o) for p, o in zip(drawn, outlines)] == [True] * len(outlines)
-        # and back: the route around the MARs again
-        select.value = "mar"
+        assert s.obstacle_model == "outline" and s.route.length == pytest.approx(routes["outline"])
+        select.value = "parts"
         await settle(app, pilot)
-        assert s.obstacle_model == "mar" and s.route.length == pytest.approx(around_mars.length)
-        mars = [Polygon(ob.mar_m) for ob in s.detection.obstacles]
-        assert [Polygon(p).equals(m) for p, m in zip(app.screen.query_one("#map", MapView).scene["obstacles"], mars)] \
-            == [True] * len(mars)
+        assert s.obstacle_model == "parts" and s.route.length == pytest.approx(routes["parts"])
 
     routed.run(body)
 

@@ -40,8 +40,11 @@ _NEAR_SHORTEST = "collision-free, near-shortest, not proven"
 def _make(stage_name: str, ompl_name: str, what: str, guarantee: str) -> type:
     cls = type(f"Ompl{ompl_name}", (_OmplPlanner,), {
         "__module__": __name__,
-        "__annotations__": {"name": "ClassVar[str]", "description": "ClassVar[str]", "guarantee": "ClassVar[str]"},
+        "__annotations__": {"name": "ClassVar[str]", "aliases": "ClassVar[tuple[str, ...]]",
+                            "description": "ClassVar[str]", "guarantee": "ClassVar[str]"},
         "name": stage_name,
+        # OMPL's own class name finds the stage too (sbplan plan --planner RRTstar)
+        "aliases": (ompl_name,),
         "description": f"OMPL {ompl_name}: {what}",
         "guarantee": guarantee,
     })

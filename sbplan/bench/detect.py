@@ -15,6 +15,14 @@ Rendering and set-up are not timed.
 sbplan rows: the default pipeline and, so that plugin authors see where theirs stands, the default
 with one stage swapped for each other registered stage (calibrated with that stage). ``kka`` is slow
 and runs on ``--slow-scenes`` frames only.
+
+Footprints (issue 15): on the default pipeline's detections, each footprint stage (``pixels``, the
+default, and ``cells``, the paper's) is scored against the true obstacles
+(:func:`sbplan.bench.evaluation.score_footprints`): recall (share of the true pixels of the
+obstacles the cells can see inside the reported outlines), area ratio (reported over true), the
+floor points a start or goal could use that each obstacle model swallows, and the footprint
+stage's CPU time per frame (``time.process_time``, median over the frames and ``--repeat`` runs:
+CPU time, because the machine the figures come from is shared).
 """
 
 from __future__ import annotations
@@ -24,7 +32,7 @@ import json
 import math
 import platform
 import time
-from typing import Any, Callable, cast
+from typing import TYPE_CHECKING, Any, Callable, TypeVar, cast
 
 import cv2
 import numpy as np
@@ -38,6 +46,12 @@ from sbplan.detection.calibration import DEFAULT_STAGES, calibrate
 from sbplan.errors import InputError, SbplanError
 from sbplan.imageio import write_image
 from sbplan.synth import CONDITIONS, FloorSpec
+
+if TYPE_CHECKING:
+    from sbplan.detection.registration import CameraMotion
+    from sbplan.synth.truth import GroundTruth
+
+R = TypeVar("R")
 
 HELP = "cell occupancy: sbplan vs ArUco grid vs background subtraction, per condition"
 KINDS = ("binarizer", "extractor", "approximator", "matcher", "mapper")
@@ -103,7 +117,7 @@ def sbplan_variants(*, all_variants: bool = True) -> list[tuple[str, StageChoice
     return out
 
 
-def _motion_error(camera, truth) -> tuple[float, float]:
+def _motion_error(camera: CameraMotion, truth: GroundTruth) -> tuple[float, float]:
     """How far the movement a detection reported is from the renderer's: the largest error of
     the shift (pixels) and of the rotation (degrees)."""
     m = truth.params["camera"].get("motion") or {"shift_px": [0.0, 0.0], "rotation_deg": 0.0}
@@ -111,8 +125,9 @@ def _motion_error(camera, truth) -> tuple[float, float]:
     return err_px, abs(camera.rotation_deg - m["rotation_deg"])
 
 
-def _timed(fn, image, repeat: int) -> tuple[Any, list[float]]:
-    runs, result = [], None
+def _timed(fn: Callable[[np.ndarray], R], image: np.ndarray, repeat: int) -> tuple[R, list[float]]:
+    """``fn(image)`` run ``repeat`` (>= 1) times: its last result, and milliseconds per run."""
+    runs: list[float] = []
     for _ in range(repeat):
         t0 = time.perf_counter()
         result = fn(image)
@@ -147,7 +162,9 @@ def measure(*, conditions: list[str] | None = None, scenes: int = 5, size: tuple
     out_rows: list[dict] = []
     stage_ms: dict[str, list[float]] = {}
     full_ms: list[float] = []
-    full_detector = None
+    full_detector: Detector | None = None
+    footprint_rows: list[dict] = []
+    footprint_cpu: dict[str, list[float]] = {}
     per_condition = len(variants) + len(BASELINES) + 1  # the set-up, sbplan's variants, the baselines
     done = 0
 
@@ -181,6 +198,7 @@ def measure(*, conditions: list[str] | None = None, scenes: int = 5, size: tuple
                 methods.append((label, False, (make(), None), frames))
             except SbplanError as exc:
                 methods.append((label, False, (None, f"set-up failed: {exc}"), frames))
+        detections = []
         for label, is_default, (fn, err), frames in methods:
             step(f"{cond}: {label}")
             total, times, motion_px, motion_deg = Scores(), [], [], []
@@ -196,8 +214,12 @@ def measure(*, conditions: list[str] | None = None, scenes: int = 5, size: tuple
                         motion_deg.append(err_deg)
                         for k, v in result.timings_ms.items():
                             stage_ms.setdefault(k, []).append(v)
-                        # issue 4's figure: the whole detection, obstacles included
-                        full_ms += _timed(full_detector, image, repeat)[1]
+                        # issue 4's figure: the whole detection, obstacles included (the default's
+                        # detector: set with its fn above, so never None here)
+                        if full_detector is not None:
+                            detection, runs = _timed(full_detector, image, repeat)
+                            full_ms += runs
+                            detections.append((image, detection, truth))
             ok = fn is not None and len(frames) > 0
             out_rows.append({
                 "condition": cond, "method": label, "default": is_default, "frames": len(frames) if fn is not None else 0,
@@ -208,6 +230,8 @@ def measure(*, conditions: list[str] | None = None, scenes: int = 5, size: tuple
                 "motion_error_px": max(motion_px) if motion_px else math.nan,
                 "motion_error_deg": max(motion_deg) if motion_deg else math.nan,
             })
+            if is_default and detections:
+                footprint_rows += _footprints(cond, full_detector, detections, repeat, footprint_cpu)
     checks = []
     for cond in names:
         by = {r["method"]: r for r in out_rows if r["condition"] == cond}
@@ -228,7 +252,50 @@ def measure(*, conditions: list[str] | None = None, scenes: int = 5, size: tuple
         "stage_ms": {k: float(np.median(v)) for k, v in stage_ms.items()},
         "default_with_obstacles_ms": float(np.median(full_ms)) if full_ms else math.nan,
         "checks": checks,
+        "footprints": footprint_rows,
+        "footprint_cpu_ms": {k: float(np.median(v)) for k, v in footprint_cpu.items()},
     }
+
+
+#: The footprint stages scored: the default and the paper's.
+FOOTPRINTS = ("pixels", "cells")
+
+
+def _footprints(cond: str, detector, detections: list, repeat: int, cpu: dict[str, list[float]]) -> list[dict]:
+    """Footprint rows of one condition: each of :data:`FOOTPRINTS` on the default pipeline's cells."""
+    from dataclasses import replace
+
+    from sbplan.bench.evaluation import FootprintScores, score_footprints
+    from sbplan.detection.obstacles import OBSTACLE_MODELS, obstacles_from_outlines
+    from sbplan.contracts import FootprintRefiner
+    from sbplan.registry import registry
+
+    cal = detector.calibration
+    rows = []
+    for name in FOOTPRINTS:
+        stage = cast(FootprintRefiner, registry().create("footprint", name))
+        data = stage.prepare(cal)
+        if data is None and stage.fallback:
+            stage = cast(FootprintRefiner, registry().create("footprint", stage.fallback))
+            data = stage.prepare(cal)
+        total, times = FootprintScores(), []
+        for image, detection, truth in detections:
+            for _ in range(repeat):
+                t0 = time.process_time()
+                outlines = stage.outlines(image, detection.occupied, detection.occupancy, cal, detection.camera, data)
+                times.append((time.process_time() - t0) * 1e3)
+            obstacles = obstacles_from_outlines(outlines, detection.occupied, cal.grid, to_world=cal.pixels_to_world,
+                                                to_pixels=cal.world_to_pixels)
+            total = total + score_footprints(replace(detection, obstacles=obstacles), truth)
+        cpu.setdefault(name, []).extend(times)
+        rows.append({
+            "condition": cond, "footprint": stage.name, "frames": len(detections), "recall": total.recall,
+            "all_recall": total.all_recall, "area_ratio": total.area_ratio, "unseen": total.unseen,
+            "free_points": total.free_points, "swallowed": dict(total.swallowed),
+            "model_ratio": {m: total.model_ratio(m) for m in OBSTACLE_MODELS}, "parts_ratio": total.parts_ratio,
+            "median_cpu_ms": float(np.median(times)) if times else math.nan,
+        })
+    return rows
 
 
 def _short(method: str) -> str:
@@ -282,6 +349,21 @@ def format_tables(result: dict[str, Any]) -> str:
         lines.append(f"{ch['condition']:<11} {ch['default_f1']:>10.3f}  {ch['best_baseline']:<18} "
                      f"{ch['best_baseline_f1']:>6.3f}  {'yes' if ch['f1_at_least_baselines'] else 'NO':<19}  "
                      f"{ch['time_over_aruco']:<21.3f}  {d['motion_error_px']:.3f} / {d['motion_error_deg']:.4f}")
+    if result.get("footprints"):
+        lines.append("")
+        lines.append("footprints (default pipeline's cells; recall and area over the obstacles the cells can see; "
+                     "'swallowed': free floor points inside each obstacle model's polygons; CPU ms per frame)")
+        lines.append(f"{'condition':<11} {'footprint':<9} {'recall':>7} {'all':>7} {'area':>6} {'unseen':>6} "
+                     f"{'parts/out':>9} {'swallowed mar/parts/outline of free':>36} {'cpu ms':>7}")
+        for r in result["footprints"]:
+            sw = r["swallowed"]
+            lines.append(f"{r['condition']:<11} {r['footprint']:<9} {r['recall']:>7.4f} {r['all_recall']:>7.4f} "
+                         f"{r['area_ratio']:>6.3f} {r['unseen']:>6d} {r['parts_ratio']:>9.3f} "
+                         f"{sw.get('mar', 0):>14d}/{sw.get('parts', 0)}/{sw.get('outline', 0)} of {r['free_points']:<6d} "
+                         f"{r['median_cpu_ms']:>7.2f}")
+        cpu = result.get("footprint_cpu_ms", {})
+        lines.append("  median CPU ms per frame over every condition: "
+                     + ", ".join(f"{k} {v:.2f}" for k, v in cpu.items()))
     if result["stage_ms"]:
         lines.append("")
         lines.append("default pipeline, median ms per stage over all frames (Detector.find_cells timings):")

@@ -29,14 +29,29 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import platform
+import tempfile
 import threading
 import time
-from typing import Any, Callable
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Callable, Literal, Sequence
 
 import cv2
 import numpy as np
+
+from sbplan.detection import Detector
+from sbplan.detection.calibration import calibrate
+from sbplan.errors import InputError
+from sbplan.live import IterableSource, VideoSource, Watcher, paced
+from sbplan.synth import FloorSpec
+from sbplan.synth.sequence import demo_sequence, render_sequence, write_sequence
+
+if TYPE_CHECKING:
+    from sbplan.detection.calibration import Calibration
+    from sbplan.live import Source
+    from sbplan.live.watcher import WatchStats
 
 HELP = "live pipeline (sbplan watch): fps with and without decoding, latency, streams per core"
 
@@ -68,11 +83,8 @@ def _grid(size: tuple[int, int]) -> tuple[int, int]:
     return max(4, round(size[0] / 128)), max(3, round(size[1] / 120))
 
 
-def _stream(size, frames: int, seed: int, folder):
-    from sbplan.detection.calibration import calibrate
-    from sbplan.synth import FloorSpec
-    from sbplan.synth.sequence import demo_sequence, render_sequence, write_sequence
-
+def _stream(size: tuple[int, int], frames: int, seed: int,
+            folder: Path) -> tuple[FloorSpec, list[np.ndarray], Path, Calibration]:
     cols, rows = _grid(size)
     floor = FloorSpec(width=size[0], height=size[1], cols=cols, rows=rows)
     spec = demo_sequence(floor, n_frames=frames, fps=30.0)
@@ -82,10 +94,8 @@ def _stream(size, frames: int, seed: int, folder):
     return floor, images, avi, cal
 
 
-def _watch(source, cal, *, hysteresis: str, **options) -> tuple[dict, float, float]:
+def _watch(source: Source, cal: Calibration, *, hysteresis: str, **options: Any) -> tuple[WatchStats, float, float]:
     """Run one watch to its end: (stats, wall seconds, process CPU seconds)."""
-    from sbplan.live import Watcher
-
     w = Watcher(source, cal, hysteresis=hysteresis, stall_timeout=30.0, **options)
     t0, c0 = time.perf_counter(), time.process_time()
     for _ in w.events():
@@ -93,7 +103,7 @@ def _watch(source, cal, *, hysteresis: str, **options) -> tuple[dict, float, flo
     return w.stats(), time.perf_counter() - t0, time.process_time() - c0
 
 
-def _decode_only(avi) -> tuple[int, float, float]:
+def _decode_only(avi: Path) -> tuple[int, float, float]:
     cap = cv2.VideoCapture(str(avi), cv2.CAP_FFMPEG)
     n, t0, c0 = 0, time.perf_counter(), time.thread_time()
     fails = 0
@@ -108,17 +118,12 @@ def _decode_only(avi) -> tuple[int, float, float]:
     return n, time.perf_counter() - t0, time.thread_time() - c0
 
 
-def measure(*, sizes=((1280, 960), (1920, 1080)), frames: int = 60, loops: int = 3, fps: float = 30.0,
-            streams: int = 8, hysteresis: str = "3", seed: int = 0, workdir=None,
+def measure(*, sizes: Sequence[tuple[int, int]] = ((1280, 960), (1920, 1080)), frames: int = 60, loops: int = 3,
+            fps: float = 30.0, streams: int = 8, hysteresis: str = "3", seed: int = 0,
+            workdir: str | os.PathLike[str] | None = None,
             progress: Callable[[int, int, str], None] | None = None) -> dict[str, Any]:
     """Run the benchmark; the results as a dict (what ``--json`` prints). ``progress(done,
     total, what)`` is called before each part of each size."""
-    import tempfile
-    from pathlib import Path
-
-    from sbplan.errors import InputError
-    from sbplan.live import IterableSource, VideoSource, paced
-
     for name, v, lo in (("--frames", frames, 24), ("--loops", loops, 1), ("--streams", streams, 0)):
         if isinstance(v, bool) or not isinstance(v, int) or v < lo:
             raise InputError(f"{name}: expected an integer >= {lo}, got {v!r}")
@@ -143,14 +148,12 @@ def measure(*, sizes=((1280, 960), (1920, 1080)), frames: int = 60, loops: int =
             played = images * loops
             row: dict[str, Any] = {"size": list(size), "grid": [floor.cols, floor.rows], "frames": len(played)}
 
-            def mem(live_rate=None):
+            def mem(live_rate: float | None = None) -> Source:
                 src = IterableSource(played, live=False, fps=fps)
                 return paced(src) if live_rate else src
 
             # detection of one frame on its own, each frame repeated: the least CPU of the repeats is
             # close to what a quiet machine takes (others' load only ever adds)
-            from sbplan.detection import Detector
-
             step(f"{at}: detection of single frames")
             det = Detector(cal)
             per_frame = []
@@ -203,15 +206,13 @@ def measure(*, sizes=((1280, 960), (1920, 1080)), frames: int = 60, loops: int =
             "rows": rows}
 
 
-def _streams(frames, cal, *, n: int, fps: float, hysteresis: str) -> dict:
+def _streams(frames: list[np.ndarray], cal: Calibration, *, n: int, fps: float, hysteresis: str) -> dict[str, Any]:
     """``n`` watches at ``fps`` in threads of this process, pinned to one core."""
-    from sbplan.live import IterableSource, Watcher, paced
-
     watchers = [Watcher(paced(IterableSource(frames, live=False, fps=fps)), cal, hysteresis=hysteresis,
                         stall_timeout=30.0) for _ in range(n)]
-    pinned = hasattr(os, "sched_setaffinity")
-    before = os.sched_getaffinity(0) if pinned else None
-    if pinned:
+    before = os.sched_getaffinity(0) if hasattr(os, "sched_setaffinity") else None
+    pinned = before is not None
+    if before is not None:
         os.sched_setaffinity(0, {min(before)})
     try:
         threads = [threading.Thread(target=lambda w=w: [None for _ in w.events()]) for w in watchers]
@@ -222,18 +223,24 @@ def _streams(frames, cal, *, n: int, fps: float, hysteresis: str) -> dict:
             t.join()
         wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     finally:
-        if pinned:
+        if before is not None:
             os.sched_setaffinity(0, before)
     stats = [w.stats() for w in watchers]
     return {"n": n, "pinned_to_one_core": pinned, "wall_s": wall, "process_cpu_share": cpu / wall,
             "processed": [s["frames_processed"] for s in stats], "dropped": [s["frames_dropped"] for s in stats],
             "read": [s["frames_read"] for s in stats],
-            "latency_median_ms": [s["latency_ms"]["median"] for s in stats],
-            "latency_p99_ms": [s["latency_ms"]["p99"] for s in stats],
+            "latency_median_ms": [_latency(s, "median") for s in stats],
+            "latency_p99_ms": [_latency(s, "p99") for s in stats],
             "cpu_ms_per_frame": [s["cpu_ms_per_frame"] for s in stats]}
 
 
-def format_tables(result: dict) -> str:
+def _latency(stats: WatchStats, which: Literal["median", "p99"]) -> float:
+    """A watch's median or 99th-percentile latency, ms (NaN for a watch that processed no frame)."""
+    lat = stats["latency_ms"]
+    return math.nan if lat is None else lat[which]
+
+
+def format_tables(result: dict[str, Any]) -> str:
     s = result["setup"]
     budget = 1e3 / (s["fps"] * max(s["streams"], 1))
     lines = [f"{s['frames']}-frame stream x {s['loops']} loops; live runs at {s['fps']:g} fps; hysteresis {s['hysteresis']}; "

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, cast
 if TYPE_CHECKING:
     from ..contracts import StageChoices
 
-STAGE_KINDS = ("binarizer", "extractor", "approximator", "matcher", "mapper")
+STAGE_KINDS = ("binarizer", "extractor", "approximator", "matcher", "mapper", "footprint")
 
 
 def add_stage_arguments(parser: argparse.ArgumentParser) -> None:
@@ -26,3 +26,12 @@ def stage_choices(args: argparse.Namespace) -> StageChoices:
     for kind, name in chosen.items():
         registry.registry().info(kind, name)  # raises UnknownStageError listing the installed names
     return cast("StageChoices", chosen)  # keys from STAGE_KINDS, values names
+
+
+def add_obstacle_model_argument(parser: argparse.ArgumentParser, *, what: str) -> None:
+    """``--obstacle-model mar|parts|outline``: the same option, the same default, in every command."""
+    from ..detection.obstacles import DEFAULT_OBSTACLE_MODEL, OBSTACLE_MODELS
+
+    parser.add_argument("--obstacle-model", choices=OBSTACLE_MODELS, default=DEFAULT_OBSTACLE_MODEL,
+                        help=f"what stands for each obstacle {what}: its minimum-area rectangle, rectangles "
+                             f"of its parts, or its outline (default: %(default)s)")

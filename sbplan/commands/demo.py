@@ -6,6 +6,12 @@ import argparse
 from pathlib import Path
 
 HELP = "calibrate, detect and plan a route on an example map (default maps/paper-8x6)"
+DESCRIPTION = (
+    "Calibrate, detect and plan on an example map, writing every output into one folder: "
+    "calibration.json and result.json (pixels of the calibration image; metres of the floor's local "
+    "frame, x along the grid's columns, y up toward row 0), overlay.png and occupancy.png (camera "
+    "pixels: pictures, not maps), obstacles.geojson (WGS84 longitude/latitude when the floor is "
+    "georeferenced, else local metres), nav2/ (a ROS 2 map in local metres) and route.json (local metres).")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -16,6 +22,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="folder for the calibration, result, pictures and maps (default: out/<map name>); "
                              "replaced as a whole, so it must be new or hold only a previous demo's files")
     parser.add_argument("--planner", default="aux-corner", help="planner stage (default: %(default)s)")
+    from ._stage_options import add_obstacle_model_argument
+    from .detect import add_georef_argument
+
+    add_obstacle_model_argument(parser, what="(planner, overlay, GeoJSON, nav2)")
+    add_georef_argument(parser)
 
 
 #: What the demo's output folder holds (it is replaced as a whole, so it may hold nothing else).
@@ -23,14 +34,17 @@ DEMO_FILES = ("calibration.json", "result.json", "overlay.png", "occupancy.png",
               "route.json")
 
 
-def demo_files(calibration, image, detection, route=None) -> dict[str, bytes | str]:
+def demo_files(calibration, image, detection, route=None, model: str | None = None) -> dict[str, bytes | str]:
     """The demo's output folder as ``{relative path: content}``: calibration, result, pictures,
-    GeoJSON, nav2 map and (when planned) the route, written as one unit by :func:`run`."""
+    GeoJSON, nav2 map and (when planned) the route, written as one unit by :func:`run`. The
+    overlay, the GeoJSON and the nav2 map show the obstacle model ``model`` (default ``parts``)."""
     import json
 
     from ..detection import exports
     from ..files import json_default
-    from ..imageio import encode_image
+    from ..detection.obstacles import DEFAULT_OBSTACLE_MODEL
+
+    model = model or DEFAULT_OBSTACLE_MODEL
 
     def as_json(obj) -> str:
         return json.dumps(obj, indent=2, default=json_default) + "\n"
@@ -38,10 +52,11 @@ def demo_files(calibration, image, detection, route=None) -> dict[str, bytes | s
     files: dict[str, bytes | str] = {
         "calibration.json": as_json(calibration.to_json()),
         "result.json": as_json(detection.to_json()),
-        "overlay.png": encode_image("overlay.png", exports.overlay_image(image, detection)),
-        "occupancy.png": encode_image("occupancy.png", detection.occupancy),
-        "obstacles.geojson": json.dumps(exports.geojson(detection), indent=1) + "\n",
-        **{f"nav2/{name}": data for name, data in exports.nav2_files(detection).items()},
+        # the pictures say in their metadata that they are camera pixels: plan refuses them as maps
+        "overlay.png": exports.encode_overlay("overlay.png", image, detection, model),
+        "occupancy.png": exports.encode_occupancy("occupancy.png", detection),
+        "obstacles.geojson": json.dumps(exports.geojson(detection, model), indent=1) + "\n",
+        **{f"nav2/{name}": data for name, data in exports.nav2_files(detection, model=model).items()},
     }
     if route is not None:
         files["route.json"] = as_json(route.to_dict())
@@ -67,6 +82,12 @@ def run(args: argparse.Namespace) -> int:
     check_set_folder(out, DEMO_FILES, what="-o")  # refused before the work, not after it
     workspace = load_workspace(folder) if (folder / "workspace.toml").is_file() else None
     print(f"map {folder}: calibrating on reference.png")
+    if args.georef is not None:
+        from dataclasses import replace
+
+        from ..workspace import Georeference, Workspace
+
+        workspace = replace(workspace or Workspace(), georeference=Georeference.parse(args.georef))
     cal = calibrate(folder / "reference.png", workspace=workspace)
     print(f"  grid {size_text(cal.grid.cols, cal.grid.rows)}, threshold {cal.threshold:.4f}, margin {cal.margin:.1f}x")
     image = load_image(folder / args.scene)
@@ -82,14 +103,16 @@ def run(args: argparse.Namespace) -> int:
         from .plan import describe
 
         quiet(bool(getattr(args, "verbose", False)))  # OMPL's log only with -v
-        obstacles = detection_obstacles(detection)
+        # the detection's obstacles under the obstacle model, on its floor
+        obstacles = detection_obstacles(detection, use=args.obstacle_model)
         route = plan(obstacles.polygons, ws.start_m, ws.goal_m, robot_radius=ws.robot_radius_m,
                      planner=args.planner, bounds=obstacles.bounds)
         pts = " -> ".join(f"({x:.2f}, {y:.2f})" for x, y in route.waypoints)
-        print(f"{describe(route)}: {route.length:.3f} m in {route.time * 1e3:.2f} ms")
+        print(f"{describe(route)}, obstacles as {args.obstacle_model}: {route.length:.3f} m in "
+              f"{route.time_s * 1e3:.2f} ms")
         print(f"  {pts}")
     # every file of the run goes into the folder at once: a reader never sees one run's result
     # beside another run's GeoJSON (sbplan.files.write_file_set)
-    write_file_set(out, demo_files(cal, image, detection, route), names=DEMO_FILES)
+    write_file_set(out, demo_files(cal, image, detection, route, args.obstacle_model), names=DEMO_FILES)
     print(f"wrote {out}/: calibration.json, result.json, overlay.png, occupancy.png, obstacles.geojson, nav2/")
     return 0

@@ -38,8 +38,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--time-limit", type=float, default=1.0, metavar="S", help="seconds (default 1)")
     parser.add_argument("--resolution", type=float, default=None, metavar="M_PER_PX",
                         help="metres per pixel of a plain occupancy image (default 1: pixel units)")
-    parser.add_argument("--use", choices=("mar", "outline"), default="mar",
-                        help="detection JSON: plan around the minimum-area rectangles (default) or outlines")
+    from ._stage_options import add_obstacle_model_argument
+
+    add_obstacle_model_argument(parser, what="of a detection JSON (a GeoJSON file says its own)")
+    # the option's old name, kept for scripts
+    parser.add_argument("--use", choices=("mar", "parts", "outline"), default=None, help=argparse.SUPPRESS)
     parser.add_argument("--nav2-image-anywhere", action="store_true",
                         help="a nav2 map.yaml's image may lie outside the YAML's folder (default: refused)")
     parser.add_argument("--json", action="store_true", help="print the route as JSON")
@@ -66,7 +69,13 @@ def run(args: argparse.Namespace) -> int:
 
     check_outputs({"--plot": args.plot}, {"--obstacles": args.obstacles}, images=("--plot",))
     quiet(bool(getattr(args, "verbose", False)))
-    obs = load_obstacles(args.obstacles, resolution=args.resolution, use=args.use,
+    from ..detection.obstacles import DEFAULT_OBSTACLE_MODEL
+
+    model = args.use or args.obstacle_model
+    # a GeoJSON file says which model it holds, unless the command line names one
+    named = args.use is not None or args.obstacle_model != DEFAULT_OBSTACLE_MODEL
+    obs = load_obstacles(args.obstacles, resolution=args.resolution,
+                         obstacle_model=model if named or not str(args.obstacles).lower().endswith(".geojson") else None,
                          image_anywhere=args.nav2_image_anywhere)
     pm = PlanningMap(obs.polygons, robot_radius=args.radius, margin=args.margin, bounds=obs.bounds,
                      include=(args.start, args.goal))
@@ -83,11 +92,11 @@ def run(args: argparse.Namespace) -> int:
         from .. import registry
 
         stage = registry.planner(route.planner)
-        print(json.dumps({"format": "sbplan.route/1", **route.to_dict(), "exact": bool(stage.exact) and
-                          route.status == "exact", "guarantee": stage.guarantee}, indent=2))
+        print(json.dumps({**route.to_dict(), "exact": bool(stage.exact) and route.status == "exact",
+                          "guarantee": stage.guarantee}, indent=2))
     else:
         print(f"{describe(route)}: length {route.length:.6g}, {len(route.waypoints)} waypoints, "
-              f"{route.time * 1e3:.2f} ms")
+              f"{route.time_s * 1e3:.2f} ms")
         for x, y in route.waypoints:
             print(f"  {x:.6g},{y:.6g}")
     return 0

@@ -12,7 +12,10 @@ DESCRIPTION = (
     "Serve a calibration's floor: POST frames (or --source DIR) to detect obstacles, plan routes, get "
     "them replanned and pushed over WS /events when a new obstacle blocks them. Listens on 127.0.0.1 "
     "unless --host says otherwise; then a bearer token (--token or SBPLAN_TOKEN) is required for "
-    "everything but /health. OpenAPI at /docs. Needs the serve extra: pip install 'sbplan[serve]'.")
+    "everything but /health. OpenAPI at /docs. Needs the serve extra: pip install 'sbplan[serve]'. "
+    "GET /obstacles.geojson is WGS84 longitude/latitude when the floor is georeferenced (--georef, or "
+    "[georeference] in the calibration's workspace.toml), else the floor's local metres; routes and "
+    "the nav2 map are in local metres.")
 
 #: Environment variable holding the bearer token (safer than --token, which `ps` shows).
 TOKEN_ENV = "SBPLAN_TOKEN"
@@ -29,8 +32,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--interval", type=float, default=0.0, metavar="S",
                         help="seconds between two frames of --source (default 0: as fast as detection)")
     parser.add_argument("--token", help=f"bearer token clients must send (default: ${TOKEN_ENV}); required with a non-loopback --host")
-    parser.add_argument("--use", choices=("mar", "outline"), default="mar",
-                        help="plan around the obstacles' minimum-area rectangles (default) or outlines")
+    from ._stage_options import add_obstacle_model_argument
+
+    add_obstacle_model_argument(parser, what="(routes, GeoJSON, nav2)")
+    # the option's old name, kept for scripts
+    parser.add_argument("--use", choices=("mar", "parts", "outline"), default=None, help=argparse.SUPPRESS)
     parser.add_argument("--planner", default="aux-corner", help="planner stage for routes (default aux-corner)")
     parser.add_argument("--time-limit", type=float, default=1.0, metavar="S", help="seconds per planning query (default 1)")
     parser.add_argument("--max-routes", type=int, default=256, metavar="N",
@@ -39,6 +45,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--max-pixels", type=int, default=40_000_000, metavar="N",
                         help="largest image, width x height, read from its header before decoding (default 40e6)")
     parser.add_argument("--access-log", action="store_true", help="log every request")
+    from .detect import add_georef_argument
+
+    add_georef_argument(parser)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -64,9 +73,11 @@ def run(args: argparse.Namespace) -> int:
                          "python3 -c 'import secrets; print(secrets.token_urlsafe())'")
     if args.max_body_mb <= 0 or args.max_pixels <= 0:
         raise InputError("--max-body-mb and --max-pixels must be > 0")
-    calibration = load_calibration(args.calibration)
+    from .detect import with_georeference
+
+    calibration = with_georeference(load_calibration(args.calibration), args.georef)
     source = open_source(args.source, interval=args.interval) if args.source else None
-    service = Service(calibration, use=args.use, planner=args.planner, time_limit=args.time_limit,
+    service = Service(calibration, use=args.use or args.obstacle_model, planner=args.planner, time_limit=args.time_limit,
                       max_routes=args.max_routes,
                       limits=Limits(max_body=int(args.max_body_mb * 2**20), max_pixels=args.max_pixels))
     try:

@@ -4,10 +4,20 @@ from __future__ import annotations
 
 import argparse
 import json
+import signal
 import sys
+from types import FrameType
+from typing import TYPE_CHECKING, Any, Callable, TextIO
 
 from ._stage_options import add_stage_arguments, stage_choices
 from .plan import _xy, comma_pair
+
+if TYPE_CHECKING:
+    from ..live.watcher import Event
+
+#: A signal's disposition as ``signal.signal`` gives and takes it (a function, SIG_DFL/SIG_IGN, or
+#: None for a handler not installed from Python).
+SignalHandler = Callable[[int, FrameType | None], Any] | int | None
 
 HELP = "watch a video, image folder, camera or stream URL; print events as JSON lines"
 DESCRIPTION = (
@@ -48,12 +58,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "to be detected again (default 10)")
     parser.add_argument("--camera-tolerance", type=float, default=1.0, metavar="PX",
                         help="report a camera movement beyond this many pixels (default 1)")
+    from ._stage_options import add_obstacle_model_argument
+
+    add_obstacle_model_argument(parser, what="for the route")
     add_stage_arguments(parser)
 
 
 def run(args: argparse.Namespace) -> int:
-    import signal
-
     from ..errors import InputError
     from ..live import Watcher, open_source, paced
 
@@ -66,11 +77,12 @@ def run(args: argparse.Namespace) -> int:
                       backoff=args.backoff, max_reopen=args.max_reopen, start=args.start, goal=args.goal,
                       robot_radius=args.robot_radius, skip_unchanged=not args.every_frame,
                       change_threshold=args.change_threshold, camera_tolerance_px=args.camera_tolerance,
-                      max_frames=args.max_frames, stats_interval=args.stats, **stage_choices(args))
-    out = open(args.events, "a", encoding="utf-8") if args.events else sys.stdout
-    previous = {}
+                      max_frames=args.max_frames, stats_interval=args.stats, obstacle_model=args.obstacle_model,
+                      **stage_choices(args))
+    out: TextIO = open(args.events, "a", encoding="utf-8") if args.events else sys.stdout
+    previous: dict[int, SignalHandler] = {}
 
-    def on_signal(signum, _frame):
+    def on_signal(signum: int, _frame: FrameType | None) -> None:
         watcher.stop("interrupted" if signum == signal.SIGINT else "terminated")
         # a second Ctrl-C stops at once
         signal.signal(signum, previous[signum])
@@ -80,15 +92,15 @@ def run(args: argparse.Namespace) -> int:
             previous[sig] = signal.signal(sig, on_signal)
         except ValueError:  # not the main thread: Ctrl-C stays KeyboardInterrupt, handled by the watcher
             pass
-    last = None
+    last: Event | None = None
     try:
         for event in watcher.events():
             out.write(json.dumps(event) + "\n")
             out.flush()
             last = event
     finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
         if out is not sys.stdout:
             out.close()
     if last is not None and last["type"] == "ended":

@@ -8,6 +8,7 @@ once (stages, reference descriptors, thresholds), so a stream of frames pays onl
 from __future__ import annotations
 
 import collections.abc
+import logging
 import os
 import time
 from dataclasses import replace
@@ -15,7 +16,8 @@ from typing import Any, Unpack
 
 import numpy as np
 
-from ..contracts import (Binarizer, ContourApproximator, ContourExtractor, DescriptorMatcher, OccupancyMapper,
+from ..contracts import (Binarizer, ContourApproximator, ContourExtractor, DescriptorMatcher, FootprintRefiner,
+                         OccupancyMapper,
                          StageChoices, array_of, call_stage, describe_value, stage_failure)
 from ..errors import CameraMotionError, ContourError, DetectionError, NoFloorError
 from ..imageio import ImageInput, as_gray, load_image
@@ -23,13 +25,15 @@ from ..polygons import PolygonBatch, centroids, resample_complex, signed_areas
 from .bands import RowBands
 from .calibration.file import Calibration, load_calibration
 from .calibration.shapes import length_filter_steps
-from .obstacles import find_obstacles
+from .obstacles import obstacles_from_outlines
 from .outline_checks import (EDGE_DEPTH_PX, EDGE_SAMPLES, EDGE_UNPROBED, scratch_points, INNER_MARGIN_PX, SAMPLES, edge_factors, edge_kept,
                              edge_probes, hidden_piece, intact_edges, reference_samples, samples_deviation,
                              scratches_repaired, signed_distance_map)
 from .registration import MIN_SYMBOLS, CameraMotion, apply, centre_window, grey_centres, refine, register_pairs
 from .result import CellDetection, Detection
 from .working import WorkScale
+
+log = logging.getLogger(__name__)
 
 #: Row bands reach this many symbol sizes (and at least BAND_MARGIN_PX) above and below the
 #: reference symbols: room for defocus and small camera shake.
@@ -71,7 +75,7 @@ class Detector:
     def __init__(self, calibration: Calibration, *, binarizer: str | Binarizer | None = None,
                  extractor: str | ContourExtractor | None = None, approximator: str | ContourApproximator | None = None,
                  matcher: str | DescriptorMatcher | None = None, mapper: str | OccupancyMapper | None = None,
-                 row_bands: bool = True,
+                 footprint: str | FootprintRefiner | None = None, row_bands: bool = True,
                  register: bool = True):
         self.calibration = cal = calibration
         self.binarizer = cal.stage("binarizer", binarizer)
@@ -83,6 +87,13 @@ class Detector:
         self.approximator = cal.stage("approximator", approximator)
         self.matcher = cal.stage("matcher", matcher)
         self.mapper = cal.stage("mapper", mapper)
+        self.footprint = cal.stage("footprint", footprint)
+        # the footprint's per-calibration work; a stage that cannot use this calibration (an old
+        # file) hands over to its fallback (pixels -> cells)
+        self._footprint_data = self.footprint.prepare(cal)
+        if self._footprint_data is None and getattr(self.footprint, "fallback", None):
+            self.footprint = cal.stage("footprint", self.footprint.fallback)
+            self._footprint_data = self.footprint.prepare(cal)
         self.descriptor, self.threshold = cal.matching_for(self.matcher)
         areas = np.abs(signed_areas(cal.symbol_polygons))
         self.cell_area = areas.reshape(cal.grid.rows, cal.grid.cols)
@@ -139,7 +150,11 @@ class Detector:
             self._cell_centres = centroids(cal.symbol_polygons)
         self.stage_names = {"binarizer": self.binarizer.name, "extractor": self.extractor.name,
                             "approximator": self.approximator.name, "matcher": self.matcher.name,
-                            "mapper": self.mapper.name}
+                            "mapper": self.mapper.name, "footprint": self.footprint.name}
+        log.debug("detector: %s; row bands %s, registration %s",
+                  ", ".join(f"{k} {v}" for k, v in self.stage_names.items()),
+                  "on" if self.bands is not None else "off", "on" if self.register else "off",
+                  extra={"data": {"stages": self.stage_names}})
 
     def _bands_for(self, matrix: np.ndarray) -> RowBands | None:
         """The row bands around the symbols as a camera moved by ``matrix`` (calibration -> frame)
@@ -322,6 +337,8 @@ class Detector:
                 matched = np.concatenate([matched, self._cell_centres[whole]])
         lap("match")
         timings["total"] = (time.perf_counter() - t0) * 1e3
+        if motion.warning:
+            log.warning(motion.warning, extra={"data": {"camera": motion.to_json()}})
         return CellDetection(~found, matched_count, matched, candidates, timings, gray.shape, motion,
                              symbols_rescued=rescued)
 
@@ -412,21 +429,67 @@ class Detector:
         return np.concatenate([lo, hi], axis=1)
 
     def __call__(self, image: ImageInput) -> Detection:
-        """The whole detection: :meth:`find_cells`, then the occupancy image and the obstacles."""
+        """The whole detection: :meth:`find_cells`, then the occupancy image, the obstacles'
+        footprints (the footprint stage) and the obstacles."""
         cal = self.calibration
-        cells = self.find_cells(image)
+        t0 = time.perf_counter()
+        gray = as_gray(load_image(image) if isinstance(image, (str, os.PathLike)) else image, name="image")
+        cells = self.find_cells(gray)
         timings = {k: v for k, v in cells.timings_ms.items() if k != "total"}
         t = time.perf_counter()
         occupancy = call_stage(self.mapper, "occupancy_image", cal.grid, cells.occupied, cells.image_shape,
                                returns=array_of(tuple(cells.image_shape), kinds="u"))
         now = time.perf_counter()
         timings["map"] = (now - t) * 1e3
-        obstacles = find_obstacles(occupancy, cells.occupied, cal.grid, to_world=cal.pixels_to_world)
-        timings["obstacles"] = (time.perf_counter() - now) * 1e3
-        timings["total"] = cells.timings_ms["total"] + timings["map"] + timings["obstacles"]
+        obstacles = self.obstacles(gray, cells.occupied, occupancy, cells.camera, timings)
+        timings["obstacles"] = (time.perf_counter() - now) * 1e3 - timings["footprint"]
+        timings["total"] = (time.perf_counter() - t0) * 1e3
+        if log.isEnabledFor(logging.DEBUG):
+            log.debug("%d/%d symbols, %d occupied cells, %d obstacles in %.1f ms (%s)", cells.symbols_found,
+                      cal.symbols_expected, int(cells.occupied.sum()), len(obstacles), timings["total"],
+                      ", ".join(f"{k} {v:.1f}" for k, v in timings.items() if k != "total"),
+                      extra={"data": {"timings_ms": timings, "symbols_found": cells.symbols_found,
+                                      "occupied_cells": int(cells.occupied.sum()), "obstacles": len(obstacles)}})
         return Detection(cal, cells.occupied, cells.symbols_found, cells.matched_centres_px, occupancy,
                          obstacles, timings, self.stage_names, cells.candidates_px, cells.camera,
                          symbols_rescued=cells.symbols_rescued)
+
+    def obstacles(self, gray: np.ndarray, occupied: np.ndarray, occupancy: np.ndarray, camera: CameraMotion,
+                  timings: dict[str, float] | None = None) -> list:
+        """The obstacles of occupied cells on a frame: each one's outline by the footprint stage,
+        then its cells, MAR and parts (:func:`~sbplan.detection.obstacles.obstacles_from_outlines`).
+
+        Parameters
+        ----------
+        gray : ndarray of shape (H, W), uint8
+            The frame the cells were decided on.
+        occupied : ndarray of shape (rows, cols), bool
+        occupancy : ndarray of shape (H, W), uint8
+            The mapper's occupancy image of ``occupied``.
+        camera : CameraMotion
+            The frame's movement since calibration.
+        timings : dict, optional
+            Gets the footprint stage's milliseconds under ``"footprint"``.
+        """
+        cal = self.calibration
+        t = time.perf_counter()
+        outlines = call_stage(self.footprint, "outlines", gray, occupied, occupancy, cal, camera, self._footprint_data,
+                              returns=_outlines_check)
+        if timings is not None:
+            timings["footprint"] = (time.perf_counter() - t) * 1e3
+        return obstacles_from_outlines(outlines, occupied, cal.grid, to_world=cal.pixels_to_world,
+                                       to_pixels=cal.world_to_pixels)
+
+
+def _outlines_check(v: Any) -> str | None:
+    """The footprint stage's contract: a list of (K >= 3, 2) arrays."""
+    if not isinstance(v, list):
+        return f"{describe_value(v)}, expected a list of (K, 2) outlines"
+    for i, o in enumerate(v):
+        a = np.asarray(o) if not isinstance(o, np.ndarray) else o
+        if a.ndim != 2 or a.shape[1] != 2 or len(a) < 3 or a.dtype.kind not in "iuf" or not np.isfinite(a).all():
+            return f"outline {i} as {describe_value(a)}, expected finite (K >= 3, 2) points"
+    return None
 
 
 def _mask_of(shape: tuple[int, int]):
@@ -501,7 +564,7 @@ def detect(image: ImageInput, calibration: Calibration | str | os.PathLike,
         The current image, from the camera of the calibration.
     calibration : Calibration or path of a calibration JSON
     **stages : str or Stage
-        ``binarizer``, ``extractor``, ``approximator``, ``matcher``, ``mapper`` overrides.
+        ``binarizer``, ``extractor``, ``approximator``, ``matcher``, ``mapper``, ``footprint`` overrides.
 
     Raises
     ------

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .calibration.file import Calibration
-from .obstacles import Obstacle
+from .obstacles import DEFAULT_OBSTACLE_MODEL, Obstacle, check_obstacle_model
 from .registration import CameraMotion
 
 FORMAT = "sbplan.detection/1"
@@ -26,7 +26,7 @@ class Detection:
         The occupancy image (0 occupied, 255 free), paper figure 14.
     obstacles : list of Obstacle
     timings_ms : dict
-        Milliseconds per stage, in pipeline order (``map`` and ``obstacles`` after
+        Milliseconds per stage, in pipeline order (``map``, ``footprint`` and ``obstacles`` after
         :class:`CellDetection`'s), and "total".
     stages : dict
         kind -> stage name used.
@@ -52,6 +52,13 @@ class Detection:
     def symbols_expected(self) -> int:
         return self.calibration.symbols_expected
 
+    def planner_obstacles(self, model: str = DEFAULT_OBSTACLE_MODEL) -> list[np.ndarray]:
+        """What the planner avoids under the obstacle model ``model`` (``mar``, ``parts`` or
+        ``outline``; see :mod:`sbplan.detection.obstacles`): polygons (K, 2) in world metres, the
+        obstacles' in their order."""
+        check_obstacle_model(model)
+        return [p for ob in self.obstacles for p in ob.polygons_m(model)]
+
     def to_json(self) -> dict:
         cal = self.calibration
         return {
@@ -70,6 +77,8 @@ class Detection:
                 "origin_m": list(cal.workspace.origin),
                 "robot_radius_m": cal.workspace.robot_radius_m,
                 "frame": "metres; x right along the columns, y up toward row 0",
+                "georeference": (cal.workspace.georeference.to_json()
+                                 if cal.workspace.georeference is not None else None),
             },
             "camera": self.camera.to_json(),
             "stages": dict(self.stages),

@@ -2,14 +2,19 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import cv2
 import numpy as np
 
 from ..detection.exports import _BLACK, _GREEN, _RED, _WHITE, _YELLOW
 from .watcher import LiveState
 
+if TYPE_CHECKING:
+    from ..detection.calibration import Calibration
 
-def world_to_pixels(calibration, xy: np.ndarray) -> np.ndarray:
+
+def world_to_pixels(calibration: Calibration, xy: np.ndarray) -> np.ndarray:
     """World metres ``(x, y)`` (N, 2) -> the calibration's pixels ``(x, y)`` (N, 2), through the grid
     (the inverse of :meth:`~sbplan.detection.calibration.Calibration.pixels_to_world`)."""
     ws, rows = calibration.workspace, calibration.grid.rows
@@ -19,7 +24,7 @@ def world_to_pixels(calibration, xy: np.ndarray) -> np.ndarray:
     return calibration.grid.lattice_to_px(lattice)
 
 
-def live_overlay(image: np.ndarray, state: LiveState, calibration) -> np.ndarray:
+def live_overlay(image: np.ndarray, state: LiveState, calibration: Calibration) -> np.ndarray:
     """``image`` (the frame, gray or BGR) with the state drawn where the camera's movement puts it:
     stable occupied cells shaded red, obstacle MARs yellow with their ids, the route green.
     Returns BGR ``(H, W, 3)`` uint8."""

@@ -17,7 +17,7 @@ import collections
 import threading
 import time
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Literal
 
 import numpy as np
 
@@ -101,7 +101,7 @@ class FrameReader:
         self.backoff = (lo, hi)
         self.max_attempts = max_attempts
         self.stats = ReaderStats()
-        self._items: collections.deque = collections.deque()
+        self._items: collections.deque[Frame | Notice] = collections.deque()
         self._cond = threading.Condition()
         self._stop = threading.Event()
         self._gen = 0
@@ -171,7 +171,7 @@ class FrameReader:
     def _current(self, gen: int) -> bool:
         return gen == self._gen and not self._stop.is_set()
 
-    def _put(self, gen: int, item: Any) -> bool:
+    def _put(self, gen: int, item: Frame | Notice) -> bool:
         with self._cond:
             if isinstance(item, Frame):
                 if self.latest:
@@ -221,16 +221,17 @@ class FrameReader:
                 cap.close()
                 return
             try:
-                after = self._read_all(gen, cap, after)
+                result = self._read_all(gen, cap, after)
             finally:
                 cap.close()
-            if after == "end":
+            if result == "end":
                 return
+            after = result
             reopened = True
             # lost: wait the first backoff before opening again, so a dead camera is not hammered
             self._stop.wait(self.backoff[0])
 
-    def _read_all(self, gen: int, cap: Capture, after: int | None):
+    def _read_all(self, gen: int, cap: Capture, after: int | None) -> int | None | Literal["end"]:
         """Read until the end ("end"), a failure (returns the last frame number), or left behind."""
         src = self.source
         while True:
@@ -245,6 +246,7 @@ class FrameReader:
                 return "end"
             self.stats.corrupt += r.corrupt
             if r.status == "frame":
+                assert r.image is not None  # a "frame" read always carries its image
                 self.stats.read += 1
                 if src.live and r.number is None:
                     number = self.stats.read - 1

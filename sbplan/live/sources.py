@@ -19,9 +19,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Iterable, Iterator
 
+import cv2
 import numpy as np
 
 from ..errors import InputError, SbplanError
+from ..imageio import as_gray
 
 # FFmpeg's own complaint about a broken frame would land on the terminal (over the TUI); the watch
 # counts such frames and reports them in its events. OpenCV reads this once, when it first uses
@@ -113,15 +115,11 @@ class Source:
 
 
 def _gray(image: np.ndarray) -> np.ndarray:
-    import cv2
-
     if image.ndim == 3 and image.shape[2] == 3:
         return cv2.cvtColor(image, cv2.COLOR_BGR2GRAY)
     if image.ndim == 3 and image.shape[2] == 4:
         return cv2.cvtColor(image, cv2.COLOR_BGRA2GRAY)
     if image.dtype != np.uint8:
-        from ..imageio import as_gray
-
         return as_gray(image)
     return image
 
@@ -156,8 +154,6 @@ class VideoSource(Source):
         self.frame_count: int | None = None
 
     def open(self, after: int | None = None) -> "VideoCapture":
-        import cv2
-
         if self.kind == "camera":
             cap = cv2.VideoCapture(int(self.target))
         else:
@@ -187,8 +183,6 @@ class VideoCapture(Capture):
         self._lock = threading.Lock()
 
     def read(self) -> Read:
-        import cv2
-
         cap, src = self.cap, self.source
         if cap is None:
             return Read("end")
@@ -242,6 +236,7 @@ class FolderSource(Source):
     """
 
     kind, live = "folder", False
+    fps: float  # always stated: frames are timed at it
 
     def __init__(self, folder: str | os.PathLike, *, fps: float = 10.0):
         self.folder = Path(folder)
@@ -253,12 +248,13 @@ class FolderSource(Source):
         files = sorted(p for p in self.folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES and p.is_file())
         if not files:
             raise InputError(f"source: {folder}: no images ({', '.join(IMAGE_SUFFIXES)})")
-        numbers = [re.search(r"(\d+)\D*$", p.stem) for p in files]
-        if all(numbers) and len({int(m.group(1)) for m in numbers}) == len(files):
-            pairs = sorted((int(m.group(1)), p) for m, p in zip(numbers, files))
+        found = [re.search(r"(\d+)\D*$", p.stem) for p in files]
+        numbers = [int(m.group(1)) for m in found if m is not None]
+        if len(numbers) == len(files) and len(set(numbers)) == len(files):
+            pairs = sorted(zip(numbers, files))
         else:
             pairs = list(enumerate(files))
-        self.files = pairs
+        self.files: list[tuple[int, Path]] = pairs
 
     def open(self, after: int | None = None) -> "FolderCapture":
         start = 0 if after is None else next((i for i, (n, _) in enumerate(self.files) if n > after), len(self.files))
@@ -270,8 +266,6 @@ class FolderCapture(Capture):
         self.source, self.at = source, start
 
     def read(self) -> Read:
-        import cv2
-
         files = self.source.files
         if self.at >= len(files):
             return Read("end")

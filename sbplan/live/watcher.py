@@ -10,17 +10,34 @@ from __future__ import annotations
 
 import collections
 import math
+import os
 import threading
 import time
 from dataclasses import dataclass
-from typing import Any, Callable, Iterator
+from typing import TYPE_CHECKING, Any, Callable, Iterator, TypedDict
 
+import cv2
 import numpy as np
 
-from ..errors import CameraMotionError, InputError, PlanningError, SbplanError
+from ..detection import Detector
+from ..detection.calibration import Calibration, load_calibration
+from ..detection.obstacles import DEFAULT_OBSTACLE_MODEL, check_obstacle_model
+from ..detection.registration import apply
+from ..imageio import as_gray
+from ..errors import CameraMotionError, DetectionError, InputError, PlanningError, SbplanError
+from ..planning import plan, replan
 from .reader import Frame, FrameReader, Notice
 from .sources import Source, open_source
 from .tracking import CellHysteresis, Change, Hysteresis, ObstacleTracker
+
+if TYPE_CHECKING:
+    from ..detection.obstacles import Obstacle
+    from ..detection.registration import CameraMotion
+    from ..planning import Route
+
+#: One event: a JSON object of ``sbplan/live/schemas/events.schema.json`` (its keys depend on its
+#: ``type``, so a plain dict).
+Event = dict[str, Any]
 
 #: Why a watch stopped -> the exit code of ``sbplan watch``.
 EXIT_CODES = {
@@ -74,12 +91,36 @@ class LiveState:
     time_ms: float | None
     occupied: np.ndarray
     seen: np.ndarray | None = None
-    obstacles: tuple = ()
-    camera: Any = None
+    obstacles: tuple[Obstacle, ...] = ()
+    camera: CameraMotion | None = None
     camera_error: str | None = None
-    route: Any = None
+    route: Route | None = None
     route_error: str | None = None
     image: np.ndarray | None = None
+
+
+class Latency(TypedDict):
+    """Milliseconds from a frame's capture to the end of its processing."""
+
+    median: float
+    p99: float
+
+
+class WatchStats(TypedDict):
+    """What :meth:`Watcher.stats` counts (the ``stats`` of ``stats`` and ``ended`` events)."""
+
+    frames_read: int
+    frames_processed: int
+    frames_unchanged: int
+    frames_dropped: int
+    frames_corrupt: int
+    frames_missing: int
+    frames_unregistered: int
+    reconnects: int
+    fps: float | None
+    fps_mean: float | None
+    latency_ms: Latency | None
+    cpu_ms_per_frame: float | None
 
 
 def _point(value: Any, name: str) -> tuple[float, float] | None:
@@ -129,21 +170,20 @@ class Watcher:
         Stop after this many frames processed (reason ``limit``).
     stats_interval : float, optional
         Seconds between ``stats`` events (None: none).
+    obstacle_model : "mar" | "parts" | "outline", optional
+        What the route is planned around (default ``parts``, :mod:`sbplan.detection.obstacles`).
     keep_image : bool
         Keep the last frame in :attr:`state` (for a display).
     **stages
         Detector stage overrides (``binarizer=``, ``matcher=`` ...).
     """
 
-    def __init__(self, source: Any, calibration: Any, *, hysteresis: Hysteresis | str = Hysteresis(),
+    def __init__(self, source: Any, calibration: Calibration | str | os.PathLike[str], *, hysteresis: Hysteresis | str = Hysteresis(),
                  stall_timeout: float = 5.0, backoff: tuple[float, float] = (0.5, 8.0), max_reopen: int | None = None,
                  latest: bool | None = None, start: Any = None, goal: Any = None, robot_radius: float | None = None,
                  skip_unchanged: bool = True, change_threshold: float = 10.0, camera_tolerance_px: float = 1.0,
                  max_frames: int | None = None, stats_interval: float | None = None, keep_image: bool = False,
-                 fps: float | None = None, **stages: Any):
-        from ..detection import Detector
-        from ..detection.calibration import Calibration, load_calibration
-
+                 fps: float | None = None, obstacle_model: str | None = None, **stages: Any):
         if not isinstance(hysteresis, Hysteresis):
             hysteresis = Hysteresis.parse(hysteresis)
         for name, v, low in (("stall_timeout", stall_timeout, 0.0), ("change_threshold", change_threshold, 0.0),
@@ -156,6 +196,8 @@ class Watcher:
             raise InputError(f"max_reopen: expected an integer >= 1, got {max_reopen!r}")
         if stats_interval is not None and not (isinstance(stats_interval, (int, float)) and stats_interval > 0):
             raise InputError(f"stats_interval: expected a number of seconds > 0, got {stats_interval!r}")
+
+        self.obstacle_model = check_obstacle_model(obstacle_model or DEFAULT_OBSTACLE_MODEL)
         self.calibration = cal = calibration if isinstance(calibration, Calibration) else load_calibration(calibration)
         self.start, self.goal = _point(start, "start"), _point(goal, "goal")
         if (self.start is None) != (self.goal is None):
@@ -193,17 +235,17 @@ class Watcher:
         self.error: str | None = None
         # per-frame bookkeeping
         self._thumb: np.ndarray | None = None
-        self._last_raw: tuple | None = None
+        self._last_raw: tuple[np.ndarray, CameraMotion] | None = None
         self._reported_pose: np.ndarray = np.eye(3)
         self._camera_lost = False
-        self._route = None
+        self._route: Route | None = None
         self._route_error: str | None = None
         self._processed = self._skipped = self._unregistered = 0
-        self._latencies: collections.deque = collections.deque(maxlen=LATENCY_WINDOW)
+        self._latencies: collections.deque[float] = collections.deque(maxlen=LATENCY_WINDOW)
         self._cpu_s = 0.0
         self._first_t: float | None = None
         self._last_t: float | None = None
-        self._recent: collections.deque = collections.deque(maxlen=64)
+        self._recent: collections.deque[float] = collections.deque(maxlen=64)
 
     # -- control, from any thread ------------------------------------------------------------------
     @property
@@ -244,7 +286,7 @@ class Watcher:
     def exit_code(self) -> int:
         return EXIT_CODES.get(self.reason or "stopped", 1)
 
-    def stats(self) -> dict:
+    def stats(self) -> WatchStats:
         """Counters since the start: frames read, processed, skipped as unchanged, dropped by the
         reader, corrupt, missing from the source's numbering, unregistered; reconnects; frames per
         second; median and 99th-percentile latency (ms) from capture to the end of the frame's
@@ -266,13 +308,13 @@ class Watcher:
         }
 
     # -- the loop ----------------------------------------------------------------------------------
-    def run(self, on_event: Callable[[dict], Any]) -> int:
+    def run(self, on_event: Callable[[Event], Any]) -> int:
         """Call ``on_event(event)`` for every event until the watch ends; return its exit code."""
         for event in self.events():
             on_event(event)
         return self.exit_code
 
-    def events(self) -> Iterator[dict]:
+    def events(self) -> Iterator[Event]:
         """Run the pipeline, yielding events as they happen; the last is ``ended``. A watcher runs
         once: make another to watch again."""
         if self._seq:
@@ -292,7 +334,8 @@ class Watcher:
         down_since: float | None = None
         stalled, reopened, attempts = False, False, 0
         restart_at, restart_delay = None, self.stall_timeout
-        next_stats = time.perf_counter() + self.stats_interval if self.stats_interval else None
+        interval = self.stats_interval
+        next_stats = time.perf_counter() + interval if interval else None
         try:
             while True:
                 if self._stop_reason is not None:
@@ -304,8 +347,8 @@ class Watcher:
                     continue
                 item = reader.get(POLL_S)
                 now = time.perf_counter()
-                if next_stats is not None and now >= next_stats:
-                    next_stats = now + self.stats_interval
+                if next_stats is not None and interval and now >= next_stats:
+                    next_stats = now + interval
                     yield self._event("stats", stats=self.stats())
                 if item is None:
                     if not stalled and now - last_frame_at >= self.stall_timeout:
@@ -359,26 +402,22 @@ class Watcher:
         yield self._event("ended", reason=reason, exit_code=self.exit_code, error=self.error, stats=self.stats())
 
     # -- one frame ---------------------------------------------------------------------------------
-    def _process(self, frame: Frame) -> Iterator[dict]:
-        import cv2
-
-        from ..detection.obstacles import find_obstacles
-        from ..errors import DetectionError
-
+    def _process(self, frame: Frame) -> Iterator[Event]:
         cpu0 = time.thread_time()
         image = frame.image
         cal = self.calibration
-        events: list[dict] = []
-        unchanged = False
+        events: list[Event] = []
+        reused = None  # the last frame's cells and camera, when this frame did not change
         thumb = None
         if self.skip_unchanged and self._last_raw is not None and not self._replan.is_set():
             h, w = image.shape[:2]
             thumb = cv2.resize(image, (w // THUMB_BLOCK, h // THUMB_BLOCK), interpolation=cv2.INTER_LINEAR)
-            unchanged = (self._thumb is not None and thumb.shape == self._thumb.shape
-                         and float(cv2.absdiff(thumb, self._thumb).max()) <= self.change_threshold)
-        if unchanged:
+            if (self._thumb is not None and thumb.shape == self._thumb.shape
+                    and float(cv2.absdiff(thumb, self._thumb).max()) <= self.change_threshold):
+                reused = self._last_raw
+        if reused is not None:
             self._skipped += 1
-            raw, motion = self._last_raw
+            raw, motion = reused
         else:
             try:
                 found = self.detector.find_cells(image)
@@ -413,11 +452,12 @@ class Watcher:
         if flipped.any():
             stable = self.cells.stable
             occupancy = self.detector.mapper.occupancy_image(cal.grid, stable, tuple(cal.image_shape))
-            found_obs = find_obstacles(occupancy, stable, cal.grid, to_world=cal.pixels_to_world)
+            # each obstacle's outline by the detector's footprint stage, on the frame the cells flipped on
+            found_obs = self.detector.obstacles(as_gray(image), stable, occupancy, motion)
             _, changes = self.tracker.update(found_obs)
             for ch in changes:
-                fields = {"obstacle": ch.obstacle.to_json()}
-                if ch.kind == "moved":
+                fields: dict[str, Any] = {"obstacle": ch.obstacle.to_json()}
+                if ch.kind == "moved" and ch.previous is not None:  # a move always has its previous state
                     before, after = set(map(tuple, ch.previous.cells)), set(map(tuple, ch.obstacle.cells))
                     fields.update(previous=ch.previous.to_json(), cells_added=[list(c) for c in sorted(after - before)],
                                   cells_removed=[list(c) for c in sorted(before - after)])
@@ -433,14 +473,12 @@ class Watcher:
 
     def _pose_change(self, matrix: np.ndarray) -> float:
         """How far ``matrix`` moves the image's corners from where the last reported pose put them."""
-        from ..detection.registration import apply
-
         h, w = self.calibration.image_shape
         corners = np.array([[0, 0], [w - 1, 0], [w - 1, h - 1], [0, h - 1]], float)
         return float(np.abs(apply(matrix, corners) - apply(self._reported_pose, corners)).max())
 
-    def _finish(self, frame: Frame, cpu0: float, events: list[dict], *, raw=None, motion=None,
-                camera_error: str | None = None) -> None:
+    def _finish(self, frame: Frame, cpu0: float, events: list[Event], *, raw: np.ndarray | None = None,
+                motion: CameraMotion | None = None, camera_error: str | None = None) -> None:
         now = time.perf_counter()
         self._processed += 1
         self._cpu_s += time.thread_time() - cpu0
@@ -460,18 +498,19 @@ class Watcher:
                 e["latency_ms"] = round((t - frame.captured) * 1e3, 3)
 
     # -- the route ---------------------------------------------------------------------------------
-    def _plan(self, frame: Frame, changes: list[Change], forced: bool) -> dict | None:
+    def _plan(self, frame: Frame, changes: list[Change], forced: bool) -> Event | None:
         """Plan or replan after ``changes``; the route event, or None when the route stays."""
-        from ..planning import plan, replan
-
-        obstacles = [o.mar_m for o in self.tracker.obstacles]
+        model = self.obstacle_model
+        obstacles = [p for o in self.tracker.obstacles for p in o.polygons_m(model)]
         appeared_only = changes and all(c.kind == "appeared" for c in changes)
-        incremental = bool(self._route is not None and appeared_only and not forced)
+        # only new obstacles: the route is updated from its map, not planned anew
+        base = self._route if appeared_only and not forced else None
+        incremental = base is not None
         t0 = time.perf_counter()
         try:
-            if incremental:
-                new = [c.obstacle.mar_m for c in changes]
-                route = replan(self._route, self.start, new)
+            if base is not None:
+                new = [p for c in changes for p in c.obstacle.polygons_m(model)]
+                route = replan(base, self.start, new)
             else:
                 route = plan(obstacles, self.start, self.goal, robot_radius=self.robot_radius, bounds=self.bounds)
         except PlanningError as exc:
@@ -494,7 +533,7 @@ class Watcher:
                            time_ms=round((time.perf_counter() - t0) * 1e3, 3))
 
     # -- events ------------------------------------------------------------------------------------
-    def _event(self, kind: str, frame: Frame | None = None, **fields: Any) -> dict:
+    def _event(self, kind: str, frame: Frame | None = None, **fields: Any) -> Event:
         self._seq += 1
         event = {"type": kind, "seq": self._seq, "stream": self.source.name,
                  "frame": None if frame is None else int(frame.number),
@@ -505,7 +544,7 @@ class Watcher:
         return event
 
 
-def watch(source: Any, calibration: Any, **options: Any) -> Iterator[dict]:
+def watch(source: Any, calibration: Calibration | str | os.PathLike[str], **options: Any) -> Iterator[Event]:
     """The events of watching ``source`` (see :class:`Watcher` for the options).
 
     >>> for event in watch("recording.avi", "calibration.json", hysteresis="3"):  # doctest: +SKIP

@@ -61,7 +61,7 @@ def solve_aux_corner(pmap: PlanningMap, start: Any, goal: Any, *, time_limit: fl
         code = pmap.vmap.straight_check((sx, sy), (gx, gy))
         if code == 1:
             r = Route.segment(sx, sy, gx, gy, planner=NAME, map=pmap, goal=g0)
-            r.time = time.perf_counter() - t0
+            r.time_s = time.perf_counter() - t0
             return r
         if code == 0:
             return _search(pmap, s0, g0, False, False, t0=t0, time_limit=time_limit, straight_blocked=True)
@@ -97,7 +97,7 @@ def _search(pmap: PlanningMap, s0: np.ndarray, g0: np.ndarray, s_esc: Any, g_esc
     if g_esc is not False:
         wp = np.concatenate([wp, g0[None]])
     return Route(wp, status="approximate" if (s_esc is not False or g_esc is not False) else "exact",
-                 planner=NAME, time=time.perf_counter() - t0, map=pmap, goal=g0)
+                 planner=NAME, time_s=time.perf_counter() - t0, map=pmap, goal=g0)
 
 
 @dataclass(kw_only=True, frozen=True)

@@ -16,11 +16,13 @@ from typing import TYPE_CHECKING, Any, cast
 import numpy as np
 import shapely
 import shapely.affinity
+import yaml
 from shapely.geometry import Polygon, box
 
 from .. import limits
 from ..errors import ImageError, InputError, MapFormatError
-from ..imageio import as_gray, load_image
+from ..imageio import as_gray, image_text, load_image, read_image
+from ..workspace import Georeference
 
 if TYPE_CHECKING:
     from ..detection import Detection
@@ -36,21 +38,29 @@ class ObstacleSet:
     source: str = ""
 
 
-def load_obstacles(path: Any, *, resolution: float | None = None, use: str = "mar",
-                   image_anywhere: bool = False) -> ObstacleSet:
+def load_obstacles(path: Any, *, resolution: float | None = None, use: str | None = None,
+                   obstacle_model: str | None = None, image_anywhere: bool = False) -> ObstacleSet:
     """Load obstacles from a file, by its type.
 
     Parameters
     ----------
     path : str or Path
         ``*.json`` sbplan detection result (``format`` ``sbplan.detection/1``) or GeoJSON
-        FeatureCollection; ``*.geojson``; ``*.yaml``/``*.yml`` nav2 map; ``*.png``/``*.pgm``/...
-        plain occupancy image (dark = occupied).
+        FeatureCollection; ``*.geojson`` (local metres, or WGS84 lon/lat when its ``sbplan``
+        member carries the floor's georeference, mapped back to metres); ``*.yaml``/``*.yml``
+        nav2 map (``mode`` trinary, scale or raw, with ``negate``, read as map_server reads them:
+        :func:`map_server_values`; every cell it does not load as free is an obstacle);
+        ``*.png``/``*.pgm``/... plain occupancy image (dark = occupied). sbplan's own camera-pixel
+        images (the occupancy image, the overlay) and a nav2 map's image without its map.yaml
+        are refused: they say what they are in their metadata.
     resolution : float, optional
         Metres per pixel for a plain image (default 1: pixel units). Origin at the image's
         bottom-left corner, y up (nav2's frame).
-    use : "mar" | "outline"
-        Which polygon of a detection to plan around.
+    obstacle_model : "mar" | "parts" | "outline"
+        What of a detection result to plan around (:mod:`sbplan.detection.obstacles`); default
+        ``parts``. A GeoJSON file says which model it was written with (default: its MARs).
+    use : str
+        The old name of ``obstacle_model``.
     image_anywhere : bool
         A nav2 map.yaml's ``image:`` may name a file outside the YAML's folder (by default it must
         lie inside it: a map file is data, not a key to the file system).
@@ -66,6 +76,17 @@ def load_obstacles(path: Any, *, resolution: float | None = None, use: str = "ma
                                        and resolution > 0):
         raise InputError(f"resolution (--resolution): must be a positive number of metres per pixel, "
                          f"got {resolution!r}")
+    # -- obstacle models (issue 15): one name everywhere; `use` is its old name --
+    from ..detection.obstacles import DEFAULT_OBSTACLE_MODEL, check_obstacle_model
+
+    if use is not None and obstacle_model is not None and use != obstacle_model:
+        raise MapFormatError(f"use: {use!r} contradicts obstacle_model {obstacle_model!r}")
+    model = obstacle_model or use or DEFAULT_OBSTACLE_MODEL
+    try:
+        check_obstacle_model(model)
+    except InputError as exc:
+        raise MapFormatError(str(exc)) from None
+    explicit = (obstacle_model or use) is not None
     p = Path(path)
     if not p.exists():
         raise MapFormatError(f"{p}: no such file")
@@ -82,12 +103,13 @@ def load_obstacles(path: Any, *, resolution: float | None = None, use: str = "ma
         except RecursionError:
             raise MapFormatError(f"{p}: not an obstacle file (nested too deeply)") from None
         if isinstance(data, dict) and data.get("type") == "FeatureCollection":
-            return _from_geojson(data, str(p))
+            return _from_geojson(data, str(p), model if explicit else None)
         if isinstance(data, dict) and str(data.get("format", "")).startswith("sbplan.detection"):
-            return detection_obstacles(data, use=use, source=str(p))
+            return detection_obstacles(data, use=model, source=str(p))
         raise MapFormatError(f"{p}: neither a GeoJSON FeatureCollection nor an sbplan detection result")
     if ext in (".yaml", ".yml"):
         return _from_nav2(p, image_anywhere=image_anywhere)
+    _refuse_non_map(p)
     try:
         img = load_image(p)
     except ImageError as exc:
@@ -98,6 +120,22 @@ def load_obstacles(path: Any, *, resolution: float | None = None, use: str = "ma
     occ = img < 128
     return ObstacleSet(occupancy_polygons(occ, resolution=res, source=str(p)),
                        (0.0, 0.0, img.shape[1] * res, img.shape[0] * res), str(p))
+
+
+def _refuse_non_map(p: Path) -> None:
+    """Images sbplan writes that are not maps of the floor say so in their metadata
+    (:func:`sbplan.imageio.image_text`): refuse them, naming the file to plan on instead."""
+    kind = image_text(p).get("sbplan")
+    if kind == "camera-occupancy":
+        raise MapFormatError(
+            f"{p}: the occupancy image of 'sbplan detect' is in the camera's pixels, not a map of the floor; "
+            "plan on the detection result (sbplan detect -o result.json), its --geojson or its --nav2 map.yaml")
+    if kind == "overlay":
+        raise MapFormatError(f"{p}: the overlay picture of 'sbplan detect' is not a map; plan on the detection "
+                             "result (sbplan detect -o result.json), its --geojson or its --nav2 map.yaml")
+    if kind == "nav2-map":
+        raise MapFormatError(f"{p}: the image of a nav2 map; plan on {p.with_name('map.yaml')}, which gives its "
+                             "resolution and origin")
 
 
 def _bounds(b: Any, where: str) -> tuple | None:
@@ -122,7 +160,7 @@ def _poly(coords: Any, where: str) -> Polygon:
     return Polygon(a)
 
 
-def detection_obstacles(detection: Detection | dict[str, Any], *, use: str = "mar", source: str = "") -> ObstacleSet:
+def detection_obstacles(detection: Detection | dict[str, Any], *, use: str | None = None, source: str = "") -> ObstacleSet:
     """The obstacles of a detection result, as the planner takes them: the one place that says
     which polygons of a detection are obstacles (``sbplan demo``, the TUI and
     :func:`load_obstacles` all come here).
@@ -132,8 +170,10 @@ def detection_obstacles(detection: Detection | dict[str, Any], *, use: str = "ma
     detection : Detection or dict
         A :class:`sbplan.Detection`, or its JSON form (``Detection.to_json()``, the content of a
         ``result.json``, whose coordinates are rounded to 1e-6 m).
-    use : "mar" | "outline"
-        Each obstacle's minimum-area rectangle (``mar_m``) or its outline (``outline_m``).
+    use : "mar" | "parts" | "outline"
+        The obstacle model (:mod:`sbplan.detection.obstacles`): each obstacle's minimum-area
+        rectangle (``mar_m``), the rectangles of its parts (``parts_m``, the default) or its
+        outline (``outline_m``).
     source : str
         Where the detection came from, for messages and ``ObstacleSet.source``.
 
@@ -142,35 +182,41 @@ def detection_obstacles(detection: Detection | dict[str, Any], *, use: str = "ma
     ObstacleSet
         The polygons in metres (world frame, y up) and the bounds of the calibrated grid.
     """
-    if use not in ("mar", "outline"):
-        raise MapFormatError(f"use: expected 'mar' or 'outline', got {use!r}")
-    key = "mar_m" if use == "mar" else "outline_m"
+    from ..detection.obstacles import DEFAULT_OBSTACLE_MODEL, OBSTACLE_MODELS, json_polygons_m
+
+    use = DEFAULT_OBSTACLE_MODEL if use is None else use
+    if use not in OBSTACLE_MODELS:
+        raise MapFormatError(f"use: expected one of {', '.join(OBSTACLE_MODELS)}, got {use!r}")
     src = source or "detection"
     if not isinstance(detection, dict):
         obstacles = getattr(detection, "obstacles", None)
         calibration = getattr(detection, "calibration", None)
-        if obstacles is None or calibration is None:
+        if obstacles is None or calibration is None or not hasattr(detection, "planner_obstacles"):
             raise InputError(f"detection: expected a Detection or its JSON, got {type(detection).__name__}")
-        polys = []
-        for i, ob in enumerate(obstacles):
-            pts = getattr(ob, key, None)
-            if pts is None:
-                raise InputError(f"{src}: obstacles[{i}] has no {key} (no world frame)")
-            polys.append(Polygon(pts))
+        try:
+            polys = [Polygon(p) for p in detection.planner_obstacles(use)]
+        except InputError as exc:
+            raise InputError(f"{src}: {exc}") from None
         return ObstacleSet(polys, tuple(float(v) for v in calibration.world_bounds()), source)
     obs = detection.get("obstacles")
     if not isinstance(obs, list):
         raise MapFormatError(f"{src}: 'obstacles' must be a list")
     polys = []
     for i, ob in enumerate(obs):
-        if not isinstance(ob, dict) or key not in ob:
-            raise MapFormatError(f"{src}: obstacles[{i}] has no {key!r}")
-        polys.append(_poly(ob[key], f"{src}: obstacles[{i}].{key}"))
+        try:
+            rings = json_polygons_m(ob, use)
+        except (KeyError, TypeError):
+            key = {"mar": "'mar_m'", "parts": "'parts_m' (nor 'outline_m' to cut parts from)",
+                   "outline": "'outline_m'"}[use]
+            raise MapFormatError(f"{src}: obstacles[{i}] has no {key}") from None
+        except (ValueError, InputError) as exc:
+            raise MapFormatError(f"{src}: obstacles[{i}]: {exc}") from None
+        polys += [_poly(r, f"{src}: obstacles[{i}] ({use})") for r in rings]
     ws = detection.get("workspace") or {}
     return ObstacleSet(polys, _bounds(ws.get("bounds_m") if isinstance(ws, dict) else None, src), source)
 
 
-def _from_geojson(data: dict, src: str) -> ObstacleSet:
+def _from_geojson(data: dict, src: str, model: str | None = None) -> ObstacleSet:
     feats = data.get("features")
     if not isinstance(feats, list):
         raise MapFormatError(f"{src}: 'features' must be a list")
@@ -179,7 +225,10 @@ def _from_geojson(data: dict, src: str) -> ObstacleSet:
         geom = f.get("geometry") if isinstance(f, dict) else None
         if not isinstance(geom, dict):
             raise MapFormatError(f"{src}: features[{i}] has no geometry")
-        kind = (f.get("properties") or {}).get("kind")
+        props = f.get("properties") or {}
+        kind = props.get("kind") if isinstance(props, dict) else None
+        if kind is not None and not isinstance(kind, str):
+            raise MapFormatError(f"{src}: features[{i}].properties.kind must be a string")
         t = geom.get("type")
         if t == "Polygon":
             parts = [geom.get("coordinates")]
@@ -193,42 +242,99 @@ def _from_geojson(data: dict, src: str) -> ObstacleSet:
             shell = _poly(rings[0], f"{src}: features[{i}]")
             holes = [_poly(r, f"{src}: features[{i}] hole").exterior.coords for r in rings[1:]]
             items.append((kind, Polygon(shell.exterior.coords, holes)))
+    found = data.get("sbplan")
+    meta: dict = found if isinstance(found, dict) else {}
+    # the features of the obstacle model asked for, else of the one the file was written with
+    # (files written before the models: their MARs)
+    from ..detection.exports import GEOJSON_KINDS
+
+    asked = model
+    model = model or meta.get("obstacle_model") or "mar"
+    want = GEOJSON_KINDS.get(model, "mar")
     kinds = {k for k, _ in items if k is not None}
-    polys = [p for k, p in items if k == "mar"] if kinds else [p for _, p in items]
+    polys = [p for k, p in items if k == want] if kinds else [p for _, p in items]
     if kinds and not polys:
+        if asked is not None:
+            raise MapFormatError(f"{src}: no {want!r} features for the {asked!r} obstacle model "
+                                 f"(the file holds {', '.join(sorted(kinds))})")
         polys = [p for _, p in items]
-    meta = data.get("sbplan")
-    meta = meta if isinstance(meta, dict) else {}
+    if meta.get("georeference") is not None:
+        # WGS84 lon/lat written by sbplan detect on a georeferenced floor: back to the floor's metres
+        geo = Georeference.from_json(meta["georeference"], where=f"{src}: sbplan.georeference")
+        polys = [shapely.transform(q, geo.to_world) for q in polys]
     return ObstacleSet(polys, _bounds(meta.get("bounds_m"), src), src)
 
 
 def _read_yaml(p: Path) -> dict:
-    text = p.read_text(encoding="utf-8", errors="replace")
     try:
-        import yaml  # optional: a minimal parser below covers nav2's flat files
-        data = yaml.safe_load(text)
-    except ImportError:
-        if any(line.split("#", 1)[0].strip() and ":" not in line for line in text.splitlines()):
-            raise MapFormatError(f"{p}: not valid YAML (a line that is not 'key: value')") from None
-        data = {}
-        for line in text.splitlines():
-            line = line.split("#", 1)[0].strip()
-            if ":" not in line:
-                continue
-            k, v = (s.strip() for s in line.split(":", 1))
-            if v.startswith("["):
-                data[k] = [float(x) for x in v.strip("[]").split(",") if x.strip()]
-            else:
-                try:
-                    data[k] = float(v) if any(c in v for c in ".eE") else int(v)
-                except ValueError:
-                    data[k] = v.strip("'\"")
-    except Exception as exc:
+        data = yaml.safe_load(p.read_text(encoding="utf-8", errors="replace"))
+    except (yaml.YAMLError, ValueError, RecursionError) as exc:
         text = " ".join(str(exc).split())
         raise MapFormatError(f"{p}: not valid YAML ({text[:160]})") from None
     if not isinstance(data, dict):
         raise MapFormatError(f"{p}: not a nav2 map.yaml (expected a mapping)")
     return data
+
+
+#: map_server's OccupancyGrid values: free, occupied, unknown.
+FREE, OCCUPIED, UNKNOWN = 0, 100, -1
+
+
+def map_server_values(image: np.ndarray, *, mode: str = "trinary", negate: bool = False,
+                      occupied_thresh: float = 0.65, free_thresh: float = 0.196) -> np.ndarray:
+    """The occupancy values ROS 2 nav2's ``map_server`` loads from a map image.
+
+    As ``nav2_map_server``'s ``loadMapFromFile``: a pixel's shade is the mean of its colour
+    channels over the channel range (with the alpha channel averaged in, in trinary mode), its
+    occupancy ``occ`` is ``shade`` with ``negate``, else ``1 - shade``; then
+
+    - ``trinary``: 100 where ``occ > occupied_thresh``, 0 where ``occ < free_thresh``, else -1;
+    - ``scale``: -1 where the pixel is not opaque, else as trinary but the values between the
+      thresholds are scaled linearly to 0..100;
+    - ``raw``: the pixel value itself (``round(shade * 255)``, ``negate`` ignored) where it is
+      0..100, else -1.
+
+    Parameters
+    ----------
+    image : ndarray of shape (H, W), (H, W, 3) or (H, W, 4)
+        uint8 or uint16, as decoded (colour in OpenCV's BGR(A) order); row 0 is the map's top.
+    mode : "trinary" | "scale" | "raw"
+    negate : bool
+    occupied_thresh, free_thresh : float, 0 <= free_thresh < occupied_thresh <= 1
+
+    Returns
+    -------
+    ndarray of shape (H, W), int8, indexed ``(row, col)`` like the image: 0..100 or -1 (unknown).
+    """
+    if mode not in ("trinary", "scale", "raw"):
+        raise MapFormatError(f"mode: expected trinary, scale or raw, got {mode!r}")
+    if not (0.0 <= free_thresh < occupied_thresh <= 1.0):
+        raise MapFormatError(f"free_thresh, occupied_thresh: need 0 <= free_thresh < occupied_thresh <= 1, "
+                             f"got {free_thresh!r}, {occupied_thresh!r}")
+    img = np.asarray(image)
+    if img.dtype not in (np.uint8, np.uint16) or img.ndim not in (2, 3) or (img.ndim == 3 and img.shape[2] not in (1, 3, 4)):
+        raise MapFormatError(f"image: expected an 8- or 16-bit grey, colour or colour+alpha image, got "
+                             f"{img.dtype} of shape {img.shape}")
+    top = float(np.iinfo(img.dtype).max)
+    planes = img.astype(np.float64).reshape(img.shape[0], img.shape[1], -1) / top
+    colour, alpha = (planes[..., :3], planes[..., 3]) if planes.shape[2] == 4 else (planes, None)
+    if alpha is not None and mode == "trinary":
+        shade = np.concatenate([colour, alpha[..., None]], axis=2).mean(axis=2)
+    else:
+        shade = colour.mean(axis=2)
+    if mode == "raw":
+        value = np.rint(shade * 255.0)
+        return np.where(value <= OCCUPIED, value, UNKNOWN).astype(np.int8)
+    occ = shade if negate else 1.0 - shade
+    out = np.full(occ.shape, UNKNOWN, np.int8)
+    out[occ > occupied_thresh] = OCCUPIED
+    out[occ < free_thresh] = FREE
+    if mode == "scale":
+        between = (occ >= free_thresh) & (occ <= occupied_thresh)
+        out[between] = np.rint((occ[between] - free_thresh) / (occupied_thresh - free_thresh) * 100.0)
+        if alpha is not None:
+            out[alpha < 1.0] = UNKNOWN
+    return out
 
 
 def _nav2_number(p: Path, data: dict, key: str, default: Any = None) -> float:
@@ -239,6 +345,8 @@ def _nav2_number(p: Path, data: dict, key: str, default: Any = None) -> float:
 
 
 def _from_nav2(p: Path, *, image_anywhere: bool = False) -> ObstacleSet:
+    """A nav2 map: the cells map_server does not load as free (:func:`map_server_values`:
+    occupied, unknown, or a value in between) are the obstacles."""
     data = _read_yaml(p)
     if not {"image", "resolution", "origin"} & set(map(str, data)):
         raise MapFormatError(f"{p}: not a nav2 map.yaml (none of the keys image, resolution, origin)")
@@ -274,14 +382,15 @@ def _from_nav2(p: Path, *, image_anywhere: bool = False) -> ObstacleSet:
         raise MapFormatError(f"{p}: image {image!r} lies outside the map's folder {folder}; move it beside "
                              "map.yaml (or allow it: --nav2-image-anywhere, image_anywhere=True)")
     try:
-        img = load_image(img_path)
+        img = read_image(img_path)
     except ImageError as exc:
         raise MapFormatError(str(exc)) from None
-    occ = (img.astype(float) / 255.0) if negate else (255.0 - img.astype(float)) / 255.0
-    occupied = occ > occ_t
-    if mode != "raw":
-        occupied |= (occ >= free_t) & ~occupied  # unknown counts as obstacle
-    h, w = img.shape
+    try:
+        values = map_server_values(img, mode=mode, negate=bool(negate), occupied_thresh=occ_t, free_thresh=free_t)
+    except MapFormatError as exc:
+        raise MapFormatError(f"{p}: {exc}") from None
+    occupied = values != FREE
+    h, w = occupied.shape
     if abs(yaw) <= 1e-9:
         polys = occupancy_polygons(occupied, resolution=res, origin=(origin[0], origin[1]), source=str(p))
         bounds = (origin[0], origin[1], origin[0] + w * res, origin[1] + h * res)

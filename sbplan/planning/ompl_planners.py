@@ -188,4 +188,4 @@ def solve_ompl(pmap: PlanningMap, start: Any, goal: Any, name: str, *, time_limi
     if g_esc:
         wp = np.concatenate([wp, g0[None]])
     return Route(wp, status="approximate" if (s_esc or g_esc) else "exact", planner=name,
-                 time=time.perf_counter() - t0, map=pmap, goal=g0)
+                 time_s=time.perf_counter() - t0, map=pmap, goal=g0)

@@ -89,14 +89,21 @@ def _map_for(obstacles: Any, start: np.ndarray, goal: np.ndarray, robot_radius: 
 
 
 def plan(obstacles: Any, start: Any, goal: Any, *, robot_radius: float | None = None, planner: str | Planner = "aux-corner",
-         bounds: Sequence[float] | None = None, time_limit: float = 1.0, margin: float | None = None) -> Route:
+         bounds: Sequence[float] | None = None, time_limit: float = 1.0, margin: float | None = None,
+         obstacle_model: str | None = None) -> Route:
     """Plan a collision-free route for a disc robot among polygonal obstacles.
 
     Parameters
     ----------
-    obstacles : iterable of shapely Polygon / (M, 2) arrays ``(x, y)``, a PlanningMap or an ObstacleSet
+    obstacles : iterable of shapely Polygon / (M, 2) arrays ``(x, y)``, a PlanningMap, an ObstacleSet or a Detection
         Real obstacles; a PlanningMap (or repeated calls with the same obstacles) reuses the
-        visibility cache; an ObstacleSet (``load_obstacles``) gives its bounds too.
+        visibility cache; an ObstacleSet (``load_obstacles``) gives its bounds too. A
+        :class:`sbplan.Detection` stands for its obstacles under ``obstacle_model``
+        (:func:`sbplan.planning.detection_obstacles`), on its floor (``bounds`` default to the
+        calibrated grid's).
+    obstacle_model : "mar" | "parts" | "outline", optional
+        For a Detection: what stands for each obstacle (default ``parts``, see
+        :mod:`sbplan.detection.obstacles`).
     start, goal : (x, y)
     robot_radius, margin : float, >= 0
         Required (margin: default 0) with obstacles; with a PlanningMap, the map's own (a value
@@ -121,6 +128,14 @@ def plan(obstacles: Any, start: Any, goal: Any, *, robot_radius: float | None = 
     StageError
         The planner stage raised or returned something other than a finite Route.
     """
+    # a Detection: its obstacles under the obstacle model, on its floor (issue 15)
+    if hasattr(obstacles, "planner_obstacles"):
+        from .loaders import detection_obstacles
+
+        found = detection_obstacles(obstacles, use=obstacle_model)
+        obstacles, bounds = found.polygons, found.bounds if bounds is None else bounds
+    elif obstacle_model is not None:
+        raise InputError("obstacle_model: only a Detection has obstacle models; give its polygons otherwise")
     for name, v in (("robot_radius", robot_radius), ("margin", margin)):
         if v is not None:
             nonneg(v, name)
@@ -151,7 +166,7 @@ def replan(route: Route, position: Any, new_obstacles: Any, *, planner: str | Pl
     The route's map is copied and updated incrementally. If no new obstacle (enlarged by the
     clearance) touches the remaining route, the remaining route is returned with
     ``replanned=False``; otherwise the route from ``position`` to the route's goal is planned on
-    the updated map.
+    the updated map, and has ``replanned=True``.
 
     Parameters
     ----------
@@ -187,10 +202,11 @@ def replan(route: Route, position: Any, new_obstacles: Any, *, planner: str | Pl
     line = LineString(remaining) if len(remaining) >= 2 else Point(p)
     touched = any(shapely.relate_pattern(line, q, "T********") or q.contains(Point(p)) for q in big)
     if not touched:
-        return Route(remaining, status=route.status, planner=route.planner, time=time.perf_counter() - t0,
+        return Route(remaining, status=route.status, planner=route.planner, time_s=time.perf_counter() - t0,
                      replanned=False, map=pm, goal=route.goal)
     if route.goal is None:  # only an empty route has none, and an empty route touches nothing
         raise InputError("route: has no goal to replan to")
     out = call_stage(stage, "solve", Problem(pm, p, route.goal), time_limit=tl, returns=route_problem)
-    out.time = time.perf_counter() - t0
+    out.time_s = time.perf_counter() - t0
+    out.replanned = True
     return out

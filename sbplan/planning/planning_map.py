@@ -125,7 +125,13 @@ class PlanningMap:
                 q = np.asarray(nearest_points(part.boundary, Point(p))[0].coords[0])
                 d = q - p
                 n = math.hypot(*d)
-                if n == 0:
+                if n <= self.tolerance:
+                    # p is on the boundary (a route running along an obstacle's side, where a
+                    # robot replans from): a step off it, whichever way is free
+                    for a in np.linspace(0, 2 * math.pi, 16, endpoint=False):
+                        q = p + 10 * self.tolerance * np.array([math.cos(a), math.sin(a)])
+                        if self.in_bounds(q) and not vm.covered(q[None])[0]:
+                            return q
                     return None
                 q = q + d / n * 10 * self.tolerance
                 if self.in_bounds(q) and not vm.covered(q[None])[0]:

@@ -16,6 +16,9 @@ if TYPE_CHECKING:
 
 _F64 = np.dtype(float)
 
+#: The ``format`` of a route's JSON (``Route.to_dict``, ``sbplan plan --json``, the demo's route.json).
+ROUTE_FORMAT = "sbplan.route/1"
+
 
 @dataclass
 class Problem:
@@ -45,9 +48,10 @@ class Route:
         a sampling planner returned an approximate solution.
     planner : str
         The name of the planner stage that made it (``replan`` plans with the same one).
-    time : float, seconds spent planning
+    time_s : float, seconds spent planning
     replanned : bool
-        False when ``replan`` found the remaining route untouched and returned it unchanged.
+        True only for a route ``replan`` planned anew; False for a fresh ``plan`` and for the
+        remaining route ``replan`` returned unchanged (no new obstacle touched it).
     map : PlanningMap or None
         The map it was planned on (``replan`` copies it).
     goal : ndarray of shape (2,)
@@ -57,8 +61,8 @@ class Route:
     waypoints: np.ndarray
     status: str = "exact"
     planner: str = "aux-corner"
-    time: float = 0.0
-    replanned: bool = True
+    time_s: float = 0.0
+    replanned: bool = False
     map: PlanningMap | None = field(default=None, repr=False, compare=False)
     goal: np.ndarray | None = field(default=None, repr=False, compare=False)
     length: float = field(init=False)
@@ -79,17 +83,18 @@ class Route:
     @classmethod
     def segment(cls, sx: float, sy: float, gx: float, gy: float, *, planner: str, map: PlanningMap | None,
                 goal: np.ndarray) -> "Route":
-        """The exact route (sx, sy) -> (gx, gy) along one segment, ``time`` 0: what ``Route(((sx,
+        """The exact route (sx, sy) -> (gx, gy) along one segment, ``time_s`` 0: what ``Route(((sx,
         sy), (gx, gy)), planner=planner, map=map, goal=goal)`` builds, the same length (one
         hypot, as in __post_init__), without the dataclass machinery (straight-line queries,
         where it showed)."""
         r = cls.__new__(cls)
         r.waypoints = np.array(((sx, sy), (gx, gy)))
-        r.status, r.planner, r.time, r.replanned, r.map, r.goal = "exact", planner, 0.0, True, map, goal
+        r.status, r.planner, r.time_s, r.replanned, r.map, r.goal = "exact", planner, 0.0, False, map, goal
         r.length = math.hypot(gx - sx, gy - sy)
         return r
 
     def to_dict(self) -> dict:
-        return {"status": self.status, "planner": self.planner, "length": self.length,
-                "time_s": self.time, "replanned": self.replanned,
+        """The route's JSON (``sbplan.route/1``: ``sbplan plan --json``, the demo's route.json)."""
+        return {"format": ROUTE_FORMAT, "status": self.status, "planner": self.planner, "length": self.length,
+                "time_s": self.time_s, "replanned": self.replanned,
                 "waypoints": self.waypoints.tolist()}

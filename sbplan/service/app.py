@@ -15,16 +15,15 @@ import logging
 import time
 from typing import Any, Sequence
 
-import cv2
 from fastapi import FastAPI, Path, Query, Request, WebSocket
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse, Response
-from pydantic import BaseModel, TypeAdapter, ValidationError
+from pydantic import BaseModel, ValidationError
 from starlette.datastructures import UploadFile
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from .. import __version__
-from ..detection.exports import geojson, nav2_map, nav2_yaml
+from ..detection.exports import encode_nav2_image, geojson, nav2_map, nav2_yaml
 from ..errors import ImageError, SbplanError
 from . import models
 from .core import Service
@@ -99,28 +98,32 @@ def create_app(service: Service, *, token: str | None = None, source: FrameSourc
         return snap.model.model_copy(update={"age_s": time.time() - snap.received})
 
     @app.get("/obstacles.geojson", response_model=models.FeatureCollection, response_class=GeoJSONResponse,
-             responses=_ERRORS, tags=["floor"])
+             response_model_exclude_none=True, responses=_ERRORS, tags=["floor"])
     async def obstacles(response: Response) -> Any:
-        """The current obstacles as GeoJSON (outline and MAR of each), world metres."""
+        """The current obstacles as GeoJSON (the outline of each, and what the service plans around
+        under its obstacle model): WGS84 longitude/latitude when the calibration's workspace is
+        georeferenced, else the floor's local metres."""
         snap = service.snapshot()
         response.headers["X-Sbplan-Frame"] = str(snap.frame)
-        return await _cached(snap, "geojson", lambda: models.FeatureCollection.model_validate(geojson(snap.detection)))
+        return await _cached(snap, "geojson", lambda: models.FeatureCollection.model_validate(
+            geojson(snap.detection, service.use)))
 
     @app.get("/map.yaml", response_class=Response, responses={200: {"content": {"text/yaml": {}}}, **_ERRORS},
              tags=["floor"])
     async def map_yaml() -> Response:
-        """The ROS 2 nav2 map_server YAML of the current occupancy (its image: GET /map.pgm)."""
+        """The ROS 2 nav2 map_server YAML of what the service plans around (its image: GET /map.pgm)."""
         snap = service.snapshot()
-        _, meta = await _cached(snap, "nav2", lambda: nav2_map(snap.detection))
+        _, meta = await _cached(snap, "nav2", lambda: nav2_map(snap.detection, model=service.use))
         return Response(nav2_yaml(meta), media_type="text/yaml", headers={"X-Sbplan-Frame": str(snap.frame)})
 
     @app.get("/map.pgm", response_class=Response,
              responses={200: {"content": {"image/x-portable-graymap": {}}}, **_ERRORS}, tags=["floor"])
     async def map_pgm() -> Response:
-        """The nav2 map image: 0 occupied, 254 free; row 0 is the top (largest y)."""
+        """The nav2 map image: 0 occupied, 254 free, 205 unknown (beyond the floor); row 0 is the top
+        (largest y)."""
         snap = service.snapshot()
-        image, _ = await _cached(snap, "nav2", lambda: nav2_map(snap.detection))
-        pgm = await _cached(snap, "pgm", lambda: cv2.imencode(".pgm", image)[1].tobytes())
+        image, _ = await _cached(snap, "nav2", lambda: nav2_map(snap.detection, model=service.use))
+        pgm = await _cached(snap, "pgm", lambda: encode_nav2_image("map.pgm", image))
         return Response(pgm, media_type="image/x-portable-graymap", headers={"X-Sbplan-Frame": str(snap.frame)})
 
     @app.post("/detect", response_model=models.Detected, responses=_ERRORS, tags=["floor"], openapi_extra={
@@ -169,7 +172,7 @@ def create_app(service: Service, *, token: str | None = None, source: FrameSourc
         await service.delete_route(route_id)
         return models.Deleted(id=route_id)
 
-    event_schema = TypeAdapter(models.Event).json_schema()
+    event_schema = models.events_schema()
 
     @app.get("/events/schema", response_model=dict, tags=["events"])
     async def events_schema() -> dict:

@@ -40,6 +40,7 @@ from shapely.geometry import Polygon
 from .. import __version__, registry
 from ..detection import Calibration, Detection, Detector
 from ..errors import InputError, SbplanError
+from ..detection.obstacles import DEFAULT_OBSTACLE_MODEL, OBSTACLE_MODELS
 from ..planning import PlanningMap, detection_obstacles, plan
 from . import images, models
 from .errors import BusyError, NoFrameError, UnknownRouteError, status_and_code
@@ -80,8 +81,10 @@ class Service:
     Parameters
     ----------
     calibration : Calibration
-    use : "mar" or "outline"
-        Plan around the obstacles' minimum-area rectangles (default) or their outlines.
+    use : "mar", "parts" or "outline"
+        The obstacle model the service plans around (and serves as GeoJSON and nav2): the
+        obstacles' minimum-area rectangles, the rectangles of their parts (default) or their
+        outlines (:mod:`sbplan.detection.obstacles`).
     planner : str
         Planner stage for new routes (``sbplan plugins``); default the exact ``aux-corner``.
     time_limit : float
@@ -91,11 +94,11 @@ class Service:
     limits : Limits
     """
 
-    def __init__(self, calibration: Calibration, *, use: str = "mar", planner: str = "aux-corner",
+    def __init__(self, calibration: Calibration, *, use: str = DEFAULT_OBSTACLE_MODEL, planner: str = "aux-corner",
                  time_limit: float = 1.0, max_routes: int = 256, limits: Limits = Limits(),
                  detector: Detector | None = None):
-        if use not in ("mar", "outline"):
-            raise InputError(f"use: expected 'mar' or 'outline', got {use!r}")
+        if use not in OBSTACLE_MODELS:
+            raise InputError(f"use: expected one of {', '.join(OBSTACLE_MODELS)}, got {use!r}")
         if max_routes < 1:
             raise InputError(f"max_routes: must be >= 1, got {max_routes}")
         if not time_limit > 0:

@@ -1,7 +1,8 @@
 """Every request, response and event of the service, as pydantic models.
 
 The OpenAPI document (``/openapi.json``, ``/docs``) is generated from these, and ``GET
-/events/schema`` gives the JSON schema of the WebSocket events. Coordinates: ``*_m`` are world
+/events/schema`` gives the JSON schema of the WebSocket events (:func:`events_schema`, shipped as
+``sbplan/schemas/service-events.schema.json``). Coordinates: ``*_m`` are world
 metres (x right along the grid's columns, y up toward row 0: ROS REP-103, nav2's frame), ``*_px``
 pixels of the calibration image (x right, y down); points are ``[x, y]``; cells ``[row, col]``.
 """
@@ -10,7 +11,7 @@ from __future__ import annotations
 
 from typing import Annotated, Literal, Union
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, TypeAdapter
 
 #: A finite number: JSON has no NaN or infinity, and a planner cannot use them.
 Finite = Annotated[float, Field(allow_inf_nan=False)]
@@ -71,12 +72,20 @@ class Obstacle(BaseModel):
     angle_m_deg: float | None = None
 
 
+class GeoreferenceModel(BaseModel):
+    latitude_deg: float = Field(description="WGS84 latitude of the world point (0, 0)")
+    longitude_deg: float = Field(description="WGS84 longitude of the world point (0, 0)")
+    heading_deg: float = Field(description="compass heading of the floor's x axis, degrees clockwise from north")
+
+
 class WorkspaceInfo(BaseModel):
     bounds_m: tuple[float, float, float, float] = Field(description="[xmin, ymin, xmax, ymax] of the floor")
     pitch_m: XY
     origin_m: XY
     robot_radius_m: float
     frame: str
+    # the detection JSON's: /state and POST /detect keep it (a model without it dropped it)
+    georeference: GeoreferenceModel | None = Field(None, description="where the floor is on the Earth, if known")
 
 
 class Camera(BaseModel):
@@ -138,8 +147,10 @@ class PolygonGeometry(BaseModel):
 
 class FeatureProperties(BaseModel):
     id: int
-    kind: Literal["outline", "mar"]
+    kind: Literal["outline", "mar", "part"] = Field(description="the footprint's outline, or what the planner "
+                                                                "avoids under the obstacle model: the MAR or a part")
     cells: list[Cell]
+    part: int | None = Field(default=None, description="the part's number (kind part)")
 
 
 class Feature(BaseModel):
@@ -149,13 +160,22 @@ class Feature(BaseModel):
 
 
 class GeoJSONMeta(BaseModel):
-    frame: str = Field(description="the coordinate frame")
-    bounds_m: tuple[float, float, float, float]
+    crs: Literal["WGS84", "local"] = Field(
+        description="WGS84: positions are [longitude, latitude] degrees (RFC 7946); local: [x, y] metres of the "
+                    "floor's world frame, not longitude and latitude")
+    coordinates: str = Field(description="what the positions are, in words")
+    frame: str | None = Field(None, description="the local frame (crs local)")
+    georeference: GeoreferenceModel | None = Field(None, description="where the floor is on the Earth (crs WGS84)")
+    bounds_m: tuple[float, float, float, float] = Field(description="the floor, metres of the local frame")
+    obstacle_model: str | None = Field(default=None, description="mar, parts or outline: which features the "
+                                                                 "planner avoids")
 
 
 class FeatureCollection(BaseModel):
-    """GET /obstacles.geojson: each obstacle's outline and MAR, world metres (RFC 7946 with a
-    foreign member ``sbplan``; ``sbplan plan --obstacles`` reads it)."""
+    """GET /obstacles.geojson: each obstacle's outline and what the service plans around (its MAR or
+    its parts, the obstacle model) (RFC 7946 with a foreign member ``sbplan``; ``sbplan plan
+    --obstacles`` reads it): WGS84 longitude/latitude when the calibration's workspace is
+    georeferenced, else the floor's local metres (``sbplan.crs``)."""
 
     type: Literal["FeatureCollection"]
     features: list[Feature]
@@ -303,3 +323,16 @@ class ErrorEvent(BaseModel):
 
 Event = Annotated[Union[HelloEvent, DetectionEvent, RouteEvent, RouteDeletedEvent, FrameRejectedEvent,
                         SourceEvent, ErrorEvent], Field(discriminator="type")]
+
+
+def events_schema() -> dict:
+    """The JSON Schema (draft 2020-12) of the messages WS /events sends, a union on ``type``: what
+    ``GET /events/schema`` serves and ``sbplan/schemas/service-events.schema.json`` ships, for
+    clients that check messages without the service at hand (a test keeps the two equal)."""
+    return {"$schema": "https://json-schema.org/draft/2020-12/schema",
+            "$id": "https://sbplan.invalid/schemas/service-events.schema.json",
+            "title": "sbplan serve event (WS /events)",
+            "description": "One message of the service's WebSocket /events. Coordinates: *_m world metres (x right "
+                           "along the grid's columns, y up toward row 0), *_px pixels of the calibration image; "
+                           "cells [row, col].",
+            **TypeAdapter(Event).json_schema()}

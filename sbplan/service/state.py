@@ -149,7 +149,7 @@ def route_model(*, rid: str, owner: str | None, version: int, frame: int, reason
         status, length, waypoints, ms = None, None, [], 0.0
     else:
         # micrometres, as the detection JSON: the planner's clearance has 1e-6 of the floor's size to spare
-        status, length, ms = route.status, round(route.length, 6), round(route.time * 1e3, 3)
+        status, length, ms = route.status, round(route.length, 6), round(route.time_s * 1e3, 3)
         waypoints = [(x, y) for x, y in np.round(route.waypoints, 6).tolist()]
         planner = route.planner
     return models.Route.model_construct(

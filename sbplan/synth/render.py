@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
-from typing import Callable
+from typing import Any, Callable, Sequence
 
 import cv2
 import numpy as np
@@ -131,7 +131,7 @@ def _expose(refl: np.ndarray, effects: Effects, floor: FloorSpec, cam: Camera, r
         win = window(ring, w, h, pad=int(math.ceil(3 * blur)) + 2)
         if win is not None and darkness > 0:
             x0, y0, ww, hh = win
-            mask = np.zeros((h, w), np.float32)
+            mask: np.ndarray = np.zeros((h, w), np.float32)
             mask[y0:y0 + hh, x0:x0 + ww] = coverage([[ring]], x0, y0, ww, hh)
             if blur > 0:
                 mask = cv2.GaussianBlur(mask, (0, 0), blur)
@@ -272,13 +272,16 @@ def render_scene(floor: FloorSpec, scene: SceneSpec | None = None, *, seed: int 
     return img, truth
 
 
+#: A camera movement ``(dx px, dy px, rotation degrees, scale)`` (:attr:`Effects.motion`).
+Motion = tuple[float, float, float, float]
+
 #: What ``vibration = 1`` reaches at most: shift (px), rotation (degrees), zoom (fraction).
 VIBRATION_LIMITS = (8.0, 0.5, 0.01)
 #: Where ``drift = 1`` ends: (dx, dy) px, rotation (degrees), zoom (fraction).
 DRIFT_END = (6.0, -3.0, 0.4, 0.008)
 
 
-def _motion(floor: FloorSpec, effects: Effects, seed: int, rng: np.random.Generator):
+def _motion(floor: FloorSpec, effects: Effects, seed: int, rng: np.random.Generator) -> Motion | None:
     """The camera's movement since calibration, ``(dx, dy, rotation_deg, scale)``, or None."""
     dx, dy, rot, scale = effects.motion if effects.motion is not None else (0.0, 0.0, 0.0, 1.0)
     # drawn whatever the effects, so that vibration does not change with drift and back
@@ -308,12 +311,12 @@ def _wear(refl: np.ndarray, floor: FloorSpec, amount: float, rng: np.random.Gene
     centres = floor.centres().reshape(-1, 2)
     aa = 4  # fractional bits of cv2's antialiased drawing
 
-    def stroke(draw) -> np.ndarray:
+    def stroke(draw: Callable[[np.ndarray], Any]) -> np.ndarray:
         alpha = np.zeros((h, w), np.float32)
         draw(alpha)
         return np.clip(alpha, 0, 1)
 
-    def pt(p) -> tuple[int, int]:
+    def pt(p: Sequence[float] | np.ndarray) -> tuple[int, int]:
         return int(round(p[0] * (1 << aa))), int(round(p[1] * (1 << aa)))
 
     # scratches: straight strokes of bare floor, 1-3 px wide, through about half of the symbols
@@ -397,7 +400,9 @@ def _densify(p: np.ndarray, step: float) -> np.ndarray:
     return np.concatenate([p[i] + (nxt[i] - p[i]) * (np.arange(n[i])[:, None] / n[i]) for i in range(len(p))])
 
 
-def _truth(floor, scene, effects, cam, footprints, polys, kinds, textures, seed, draws, motion) -> GroundTruth:
+def _truth(floor: FloorSpec, scene: SceneSpec, effects: Effects, cam: Camera, footprints: tuple[np.ndarray, ...],
+           polys: list[np.ndarray], kinds: list[str], textures: list[str], seed: int, draws: dict[str, Any],
+           motion: Motion | None) -> GroundTruth:
     rows, cols = floor.rows, floor.cols
     syms = np.array([Polygon(f[0], f[1:]) for f in footprints], dtype=object)
     overlap = np.zeros(len(syms))

@@ -38,6 +38,7 @@ from shapely.geometry import Point, Polygon
 from shapely import affinity
 
 from ..errors import SceneError
+from ..imageio import write_atomic, write_image
 from .floor import FloorSpec, SceneSpec
 from .render import _floor, render_reference, render_scene
 
@@ -104,6 +105,7 @@ def person_shadow(centre: Any, length: float, angle_deg: float) -> np.ndarray:
     body = affinity.scale(Point(0, 0).buffer(1.0, quad_segs=12), 0.36 * length, 0.15 * length)
     head = Point(0.43 * length, 0).buffer(0.085 * length, quad_segs=8)
     shape = affinity.rotate(shapely.union(body, head), -angle_deg, origin=(0, 0))
+    assert isinstance(shape, Polygon)  # the head overlaps the body: their union is one polygon
     ring = np.asarray(shape.exterior.coords)[:-1]
     return ring + np.asarray(centre, dtype=np.float64)
 
@@ -124,7 +126,7 @@ class Shade:
     darkness: float = 0.45
     blur: float = 4.0
 
-    def at(self, frame: int):
+    def at(self, frame: int) -> tuple[float, float, tuple[tuple[float, ...], ...]] | None:
         """The shade effect ``(darkness, blur, outline)`` at ``frame``, or None."""
         if not self.first <= frame <= self.last:
             return None
@@ -160,7 +162,7 @@ class SequenceSpec:
     n_frames: int
     fps: float = 10.0
     tracks: tuple = ()
-    shades: tuple = ()
+    shades: tuple[Shade, ...] = ()
     bump: Any = None
     dropped: Any = ()
     corrupt: Any = ()
@@ -277,8 +279,6 @@ def write_sequence(folder: str | os.PathLike, floor: FloorSpec, spec: SequenceSp
 
     Returns the path of the stream (the video file or the frames folder).
     """
-    from ..imageio import write_atomic, write_image
-
     if kind not in KINDS:
         raise SceneError(f"kind: expected one of {', '.join(KINDS)}, got {kind!r}")
     out = Path(folder)
@@ -288,7 +288,7 @@ def write_sequence(folder: str | os.PathLike, floor: FloorSpec, spec: SequenceSp
     if kind == "avi":
         target = out / "sequence.avi"
         tmp = target.with_name(target.name + ".part.avi")
-        writer = cv2.VideoWriter(str(tmp), cv2.CAP_FFMPEG, cv2.VideoWriter_fourcc(*"MJPG"), float(spec.fps),
+        writer = cv2.VideoWriter(str(tmp), cv2.CAP_FFMPEG, cv2.VideoWriter.fourcc(*"MJPG"), float(spec.fps),
                                  (floor.width, floor.height), [cv2.VIDEOWRITER_PROP_IS_COLOR, 0])
         if not writer.isOpened():
             raise SceneError(f"{target}: OpenCV cannot write MJPG video here (FFmpeg backend missing?)")

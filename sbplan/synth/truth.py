@@ -55,6 +55,38 @@ class GroundTruth:
     def occupied(self) -> np.ndarray:
         return self.cells == OCCUPIED
 
+    def motion_matrix(self) -> np.ndarray:
+        """The camera's movement since calibration (3x3, calibration pixels -> this image's pixels;
+        the identity when the camera did not move)."""
+        motion = self.params.get("camera", {}).get("motion")
+        return np.asarray(motion["matrix"], dtype=np.float64) if motion else np.eye(3)
+
+    def obstacle_masks(self, shape: tuple[int, int], *, calibration_pixels: bool = True) -> list[np.ndarray]:
+        """Each obstacle's true pixels: the pixels whose centres its outline holds.
+
+        Parameters
+        ----------
+        shape : (H, W)
+        calibration_pixels : bool
+            True: in the calibration's view (the image before the camera moved, where detection
+            results are); False: in this image's pixels (:attr:`obstacles` as they are).
+
+        Returns
+        -------
+        list of ndarray (H, W), bool, one per obstacle of :attr:`obstacles`.
+        """
+        import cv2
+
+        inverse = np.linalg.inv(self.motion_matrix()) if calibration_pixels else np.eye(3)
+        out = []
+        for p in self.obstacles:
+            q = np.c_[np.asarray(p, dtype=np.float64), np.ones(len(p))] @ inverse.T
+            q = q[:, :2] / q[:, 2:]
+            m = np.zeros(shape, np.uint8)
+            cv2.fillPoly(m, [np.rint(q * 16).astype(np.int32)], 1, cv2.LINE_8, shift=4)
+            out.append(m.astype(bool))
+        return out
+
     @property
     def counts(self) -> dict[str, int]:
         return {"occupied": int((self.cells == OCCUPIED).sum()), "free": int((self.cells == FREE).sum()),

@@ -28,7 +28,7 @@ register_stage : callable (function scope)
 Contract suites
 ---------------
 :class:`BinarizerContract`, :class:`ExtractorContract`, :class:`ApproximatorContract`,
-:class:`MatcherContract`, :class:`MapperContract`, :class:`PlannerContract`: subclass one in a
+:class:`MatcherContract`, :class:`MapperContract`, :class:`FootprintContract`, :class:`PlannerContract`: subclass one in a
 module whose name pytest collects (``class TestX(MatcherContract)``) and set ``stage_class`` (with
 ``stage_options``) or ``stage_name``, or override the ``stage`` fixture. Every ``check_*`` function
 is also usable on its own; :func:`check_stage` runs the whole contract of a stage's kind and
@@ -54,11 +54,11 @@ from .pipeline import CalibratedPipeline, TinyFloor, make_calibrated_pipeline, m
 _NEEDS_PYTEST: dict[str, str] = {
     **dict.fromkeys(["tiny_floor", "calibrated_pipeline", "register_stage"], "fixtures"),
     **dict.fromkeys(["StageContract", "BinarizerContract", "ExtractorContract", "ApproximatorContract",
-                     "MatcherContract", "MapperContract", "PlannerContract"], "contracts"),
+                     "MatcherContract", "MapperContract", "FootprintContract", "PlannerContract"], "contracts"),
 }
 
 __all__ = [
-    "ApproximatorContract", "BinarizerContract", "CHECKS", "CalibratedPipeline", "ExtractorContract",
+    "ApproximatorContract", "BinarizerContract", "CHECKS", "CalibratedPipeline", "ExtractorContract", "FootprintContract",
     "MapperContract", "MatcherContract", "PlannerContract", "StageContract", "TinyFloor", "calibrated_pipeline",
     "check_stage", "make_calibrated_pipeline", "make_tiny_floor", "register_stage", "registered", "sample_outlines",
     "tiny_floor",

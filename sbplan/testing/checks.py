@@ -12,7 +12,8 @@ from shapely.geometry import LineString, Point
 
 from .. import registry
 from ..contours import FREEMAN_STEPS, Contour
-from ..contracts import (Binarizer, ContourApproximator, ContourExtractor, DescriptorMatcher, OccupancyMapper,
+from ..contracts import (Binarizer, ContourApproximator, ContourExtractor, DescriptorMatcher, FootprintRefiner,
+                         OccupancyMapper,
                          Planner, Stage)
 from ..detection.bands import RowBands
 from ..detection.grid import fit_grid
@@ -399,6 +400,54 @@ def check_mapper(stage: OccupancyMapper) -> None:
     assert (img2 == 0).sum() > (img == 0).sum(), f"mapper {stage.name!r}: a second occupied cell added no black"
 
 
+# footprint
+
+def check_footprint_outlines(stage: FootprintRefiner) -> None:
+    """On the tiny floor's scene (its cells detected by the default pipeline): ``prepare`` runs on
+    the calibration, ``outlines`` gives closed (K >= 3, 2) float outlines inside the image, that do
+    not overlap, and reach every occupied cell (its centre inside an outline or within half a
+    pitch of one); none when no cell is occupied; the frame is not changed."""
+    from shapely.geometry import Point, Polygon
+
+    from ..detection import Detector
+    from .pipeline import make_calibrated_pipeline
+
+    pipeline = make_calibrated_pipeline()
+    cal = pipeline.calibration
+    floor = make_tiny_floor()
+    detector = Detector(cal)
+    cells = detector.find_cells(floor.scene)
+    occupancy = detector.mapper.occupancy_image(cal.grid, cells.occupied, cells.image_shape)
+    prepared = stage.prepare(cal)
+    frame = floor.scene.copy()
+    outlines = stage.outlines(frame, cells.occupied, occupancy, cal, cells.camera, prepared)
+    assert np.array_equal(frame, floor.scene), f"footprint {stage.name!r}: changed the frame"
+    assert isinstance(outlines, list), f"footprint {stage.name!r}: outlines() must return a list"
+    h, w = cal.image_shape
+    polys = []
+    for i, o in enumerate(outlines):
+        o = np.asarray(o)
+        assert o.ndim == 2 and o.shape[1] == 2 and len(o) >= 3 and o.dtype.kind == "f", \
+            f"footprint {stage.name!r}: outline {i} is {o.dtype} of shape {o.shape}, expected (K >= 3, 2) floats"
+        assert np.isfinite(o).all() and (o >= -1).all() and (o[:, 0] <= w).all() and (o[:, 1] <= h).all(), \
+            f"footprint {stage.name!r}: outline {i} leaves the {w} x {h} image"
+        polys.append(Polygon(o).buffer(0))
+    for i in range(len(polys)):
+        for j in range(i + 1, len(polys)):
+            overlap = polys[i].intersection(polys[j]).area
+            assert overlap <= 1e-6 * max(polys[i].area, polys[j].area, 1.0), \
+                f"footprint {stage.name!r}: outlines {i} and {j} overlap by {overlap:.3g} px²"
+    reach = 0.5 * float(min(cal.grid.pitch_px))
+    for r, c in zip(*np.nonzero(cells.occupied)):
+        centre = Point(cal.grid.centres_px[r, c])
+        assert any(p.distance(centre) <= reach for p in polys), \
+            f"footprint {stage.name!r}: no outline reaches occupied cell ({r}, {c})"
+    none = np.zeros_like(cells.occupied)
+    empty = np.full(cal.image_shape, 255, np.uint8)
+    assert stage.outlines(floor.reference, none, empty, cal, cells.camera, prepared) == [], \
+        f"footprint {stage.name!r}: outlines on a floor with no occupied cell"
+
+
 # planner
 
 def _planning_map(radius: float = 0.3):
@@ -443,6 +492,7 @@ CHECKS: dict[str, tuple[Callable[[Any], None], ...]] = {
     "approximator": (check_approximator_rectangle, check_approximator_near_contour, check_approximator_many),
     "matcher": (check_matcher_descriptors, check_matcher_distances, check_matcher_invariance, check_matcher_discriminates),
     "mapper": (check_mapper,),
+    "footprint": (check_footprint_outlines,),
     "planner": (check_planner_route, check_planner_rejects_bad_start),
 }
 """kind -> the checks of its contract (besides :func:`check_declaration`)."""

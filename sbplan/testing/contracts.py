@@ -12,7 +12,7 @@ from ..contracts import Stage
 from .checks import (check_approximator_many, check_approximator_near_contour, check_approximator_rectangle,
                      check_binarizer_bands, check_binarizer_finds_ink, check_binarizer_output,
                      check_declaration, check_extractor_counts, check_extractor_empty, check_extractor_hole,
-                     check_extractor_outer, check_extractor_rectangle, check_mapper,
+                     check_extractor_outer, check_extractor_rectangle, check_footprint_outlines, check_mapper,
                      check_matcher_descriptors, check_matcher_discriminates, check_matcher_distances,
                      check_matcher_invariance, check_planner_rejects_bad_start, check_planner_route,
                      check_registered)
@@ -116,6 +116,13 @@ class MapperContract(StageContract):
 
     def test_occupancy_image(self, stage):
         check_mapper(stage)
+
+
+class FootprintContract(StageContract):
+    kind = "footprint"
+
+    def test_outlines(self, stage):
+        check_footprint_outlines(stage)
 
 
 class PlannerContract(StageContract):

@@ -38,6 +38,8 @@ ACTIONS = [
     ("Robot back", "move the robot 5 % back along the route", "route", "robot(-1)"),
     ("Clear dynamic obstacles", "forget the obstacles placed or reported since the detection; replan",
      "route", "clear_dynamic"),
+    ("Obstacle model", "what stands for each obstacle: its MAR, rectangles of its parts, or its outline "
+     "(CLI --obstacle-model); replan", "route", "obstacle_model"),
     ("Cancel running step", "stop waiting for the current step and discard its result", None, "cancel"),
 ]
 

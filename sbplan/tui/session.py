@@ -26,11 +26,11 @@ from ..workspace import load_workspace
 #: Stage kinds the operator can swap on the calibration screen, in pipeline order.
 STAGE_KINDS = ("binarizer", "extractor", "approximator", "matcher", "mapper")
 
-#: What the planner avoids of each detected obstacle: the names ``sbplan plan --use`` and
-#: ``sbplan.planning.detection_obstacles(use=...)`` take, with what the operator is told. A model
-#: the planning API gains is one more line here.
+#: What the planner avoids of each detected obstacle, with what the operator is told: the obstacle
+#: models of :mod:`sbplan.detection.obstacles`, by the names ``sbplan plan --obstacle-model`` takes.
 OBSTACLE_MODELS = {
     "mar": "minimum-area rectangles",
+    "parts": "rectangles of the parts",
     "outline": "outlines of the occupied cells",
 }
 
@@ -58,11 +58,11 @@ def square(centre: Sequence[float] | np.ndarray, side: float) -> np.ndarray:
     return np.array([[x - h, y - h], [x + h, y - h], [x + h, y + h], [x - h, y + h]])
 
 
-def obstacle_arrays(detection: Detection, *, use: str = "mar") -> list[np.ndarray]:
-    """A detection's obstacles as the planner takes them (``detection_obstacles``; ``use`` one of
-    :data:`OBSTACLE_MODELS`), in its order, as (M, 2) arrays ``(x, y)`` metres (what the map view
-    draws)."""
-    return [np.asarray(p.exterior.coords)[:-1] for p in detection_obstacles(detection, use=use).polygons]
+def obstacle_arrays(detection: Detection, model: str | None = None) -> list[np.ndarray]:
+    """A detection's obstacles as the planner takes them under the obstacle model ``model``
+    (``detection_obstacles``; default ``parts``), in its order, as (M, 2) arrays ``(x, y)`` metres
+    (what the map view draws)."""
+    return [np.asarray(p.exterior.coords)[:-1] for p in detection_obstacles(detection, use=model).polygons]
 
 
 def point_along(waypoints: np.ndarray, fraction: float) -> np.ndarray:
@@ -92,6 +92,10 @@ class Session:
     calibration, detection : Calibration, Detection or None
     start, goal : (x, y) metres or None
     planner : str
+    obstacle_model : str
+        What stands for each detected obstacle when planning: ``mar``, ``parts`` (the default) or
+        ``outline`` (:mod:`sbplan.detection.obstacles`), the names the CLI's ``--obstacle-model`` takes;
+        a key of :data:`OBSTACLE_MODELS`.
     route, old_route : Route or None
         The current route and, after a replan, the one it replaced.
     route_invalid : str or None
@@ -101,8 +105,6 @@ class Session:
         Obstacles reported after the detection (placed by the operator or from a newer image).
     robot_fraction : float
         Where the robot is along the route, as a fraction of its length.
-    obstacle_model : str
-        What the planner avoids of each detected obstacle, a key of :data:`OBSTACLE_MODELS`.
     calibration_path : Path or None
         The file the calibration was loaded from or last saved to.
     """
@@ -117,12 +119,12 @@ class Session:
     start: tuple[float, float] | None = None
     goal: tuple[float, float] | None = None
     planner: str = "aux-corner"
+    obstacle_model: str = "parts"
     route: Route | None = None
     old_route: Route | None = None
     route_invalid: str | None = None
     dynamic: list[np.ndarray] = field(default_factory=list)
     robot_fraction: float = 0.3
-    obstacle_model: str = "mar"
     calibration_path: Path | None = None
     _detector: Detector | None = field(default=None, repr=False)
 
@@ -239,9 +241,19 @@ class Session:
         return self._detector(image)
 
     def obstacles_m(self) -> list[np.ndarray]:
-        """The detection's obstacles in metres, (M, 2) ``(x, y)`` each, as the chosen obstacle
-        model has them (what the planner avoids)."""
-        return [] if self.detection is None else obstacle_arrays(self.detection, use=self.obstacle_model)
+        """The detection's obstacles in metres under the obstacle model, (M, 2) ``(x, y)`` each (what
+        the planner avoids)."""
+        return [] if self.detection is None else obstacle_arrays(self.detection, self.obstacle_model)
+
+    def clearance_m(self) -> list[np.ndarray]:
+        """The planner's clearance around :meth:`obstacles_m` (enlarged by the robot radius, clipped
+        to the floor), as outer rings in metres: what the map draws around the obstacles."""
+        from ..detection.exports import planner_view
+
+        if self.detection is None:
+            return []
+        _, zones = planner_view(self.detection, self.obstacle_model)
+        return [np.asarray(z.exterior.coords) for z in zones]
 
     def plan(self, start: Any = None) -> Route:
         """Plan from ``start`` (default: the session's start) to the goal around the detected
@@ -265,10 +277,11 @@ class Session:
         return replan(self.route, self.robot_position(), new_obstacles)
 
     def new_obstacles_in(self, detection: Detection) -> list[np.ndarray]:
-        """The MARs of ``detection``'s obstacles that cover a cell the current detection left free."""
+        """The polygons (under the obstacle model) of ``detection``'s obstacles that cover a cell the
+        current detection left free."""
         known = set(self.detection.occupied_cells) if self.detection is not None else set()
-        return [a for ob, a in zip(detection.obstacles, obstacle_arrays(detection, use=self.obstacle_model))
-                if set(map(tuple, ob.cells)) - known]
+        return [np.asarray(p) for ob in detection.obstacles if set(map(tuple, ob.cells)) - known
+                for p in ob.polygons_m(self.obstacle_model)]
 
     def not_yet_dynamic(self, obstacles: list[np.ndarray]) -> list[np.ndarray]:
         """Those of ``obstacles`` that are not already dynamic obstacles (nor repeated among

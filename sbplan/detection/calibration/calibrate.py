@@ -9,6 +9,7 @@ paper's a-priori 0.5.
 
 from __future__ import annotations
 
+import logging
 import os
 from dataclasses import replace
 from typing import Any, Callable, Unpack, cast
@@ -17,7 +18,8 @@ import cv2
 import numpy as np
 
 from ... import limits, registry
-from ...contracts import (Binarizer, ContourApproximator, ContourExtractor, DescriptorMatcher, OccupancyMapper,
+from ...contracts import (Binarizer, ContourApproximator, ContourExtractor, DescriptorMatcher, FootprintRefiner,
+                          OccupancyMapper,
                           StageChoices, distances_between)
 from ...errors import CalibrationError, InputError
 from ...imageio import ImageInput, as_gray, load_image
@@ -31,6 +33,8 @@ from ..working import WorkScale, work_factor
 from .shapes import Shapes, extract_shapes
 from .threshold import match_threshold
 
+log = logging.getLogger(__name__)
+
 #: The stages used when none is named: the fast ones (the paper's OKE and KKA are selectable).
 DEFAULT_STAGES = {
     "binarizer": "background",
@@ -38,6 +42,7 @@ DEFAULT_STAGES = {
     "approximator": "douglas-peucker",
     "matcher": "fourier",
     "mapper": "cells",
+    "footprint": "pixels",
 }
 
 
@@ -92,6 +97,7 @@ def update_calibration(calibration: Calibration, frame: ImageInput,
     updated = calibration.moved(motion.matrix)
     stats = dict(updated.stats)
     stats["updates"] = [*stats.get("updates", []), {**motion.to_json(), "symbols_found": cells.symbols_found}]
+    log.info("calibration re-anchored, %s", motion.summary(), extra={"data": {"camera": motion.to_json()}})
     return replace(updated, stats=stats), motion
 
 
@@ -100,6 +106,7 @@ def calibrate(reference: ImageInput, *, symbol: ImageInput | None = None,
               binarizer: str | Binarizer | None = None, extractor: str | ContourExtractor | None = None,
               approximator: str | ContourApproximator | None = None, matcher: str | DescriptorMatcher | None = None,
               mapper: str | OccupancyMapper | None = None,
+              footprint: str | FootprintRefiner | None = None,
               progress: Callable[[str, float], None] | None = None) -> Calibration:
     """Calibrate on an image of the empty floor.
 
@@ -114,7 +121,7 @@ def calibrate(reference: ImageInput, *, symbol: ImageInput | None = None,
         Grid pitch in metres, origin, robot radius, default route.
     cell_size : float, optional
         Grid pitch in metres (both directions) when no workspace is given; default 1.0.
-    binarizer, extractor, approximator, matcher, mapper : str or Stage, optional
+    binarizer, extractor, approximator, matcher, mapper, footprint : str or Stage, optional
         Stage names (or instances); defaults in :data:`DEFAULT_STAGES`.
 
     progress : callable(stage, fraction), optional
@@ -145,7 +152,7 @@ def calibrate(reference: ImageInput, *, symbol: ImageInput | None = None,
     reg = registry.registry()
     chosen = {kind: reg.create(kind, given if given is not None else DEFAULT_STAGES[kind])
               for kind, given in (("binarizer", binarizer), ("extractor", extractor), ("approximator", approximator),
-                                  ("matcher", matcher), ("mapper", mapper))}
+                                  ("matcher", matcher), ("mapper", mapper), ("footprint", footprint))}
     h, w = gray.shape
     points_range = (12, max(16, (h + w) // 2))
     matcher_stage = cast(DescriptorMatcher, chosen["matcher"])  # the registry made it for the kind "matcher"
@@ -219,6 +226,10 @@ def calibrate(reference: ImageInput, *, symbol: ImageInput | None = None,
         "other_distance_min": float(np.delete(dist, members).min()) if len(others) else None,
         "rejected_centres_px": np.round(shapes.centres[others][:500], 2).tolist(),
     }
+    log.info("calibrated: grid %d x %d, threshold %.4f, margin %.1fx (%s)", grid.cols, grid.rows, threshold,
+             margin, ", ".join(f"{k} {v.name}" for k, v in chosen.items()),
+             extra={"data": {"grid": [grid.rows, grid.cols], "threshold": threshold, "margin": margin,
+                             "stages": {k: v.name for k, v in chosen.items()}}})
     calibration = Calibration(
         image_shape=(h, w),
         stages={k: _stage_spec(v) for k, v in chosen.items()},

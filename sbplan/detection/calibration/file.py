@@ -34,6 +34,8 @@ SYMBOL_WINDOW = 1.6
 
 #: The stages a calibration names, one of each kind.
 STAGE_KINDS = ("binarizer", "extractor", "approximator", "matcher", "mapper")
+#: Stage kinds a calibration file may lack (written before they existed): the default is used.
+OPTIONAL_STAGE_KINDS = ("footprint",)
 
 
 @dataclass(frozen=True, eq=False)
@@ -44,8 +46,9 @@ class Calibration:
     ----------
     image_shape : (H, W)
     stages : dict
-        kind -> ``{"name": ..., "options": {...}}`` for binarizer, extractor, approximator, matcher
-        and mapper.
+        kind -> ``{"name": ..., "options": {...}}`` for binarizer, extractor, approximator, matcher,
+        mapper and footprint (files written before the footprint stage existed lack it: the
+        default is used).
     grid : Grid
     symbol_polygons : list of ndarray (K, 2)
         The approximated outline of every cell's symbol in the reference, row-major.
@@ -79,6 +82,10 @@ class Calibration:
         Every cell's symbol's grey-level centre in the reference
         (:func:`sbplan.detection.registration.grey_centres`), what frames' symbols are compared with
         to register them to sub-pixel accuracy. None in older files: the grid's centres are used.
+    reference_thumbnail : ndarray (H // 4, W // 4), uint8, or None
+        The reference averaged over 4 x 4 blocks: registration tells movements a pitch apart by the
+        floor's texture in it, and the ``pixels`` footprint compares frames with it
+        (:mod:`sbplan.detection.footprints`). None in older files (no texture check; cell footprints).
     workspace : Workspace
     """
 
@@ -115,6 +122,11 @@ class Calibration:
         does not fall back to sizes made for no floor in particular."""
         if override is not None:
             stage = registry.registry().create(kind, override)
+        elif kind not in self.stages:
+            # a file written before the kind existed (the footprint): the default stage
+            from .calibrate import DEFAULT_STAGES
+
+            stage = registry.registry().create(kind, DEFAULT_STAGES[kind])
         else:
             spec = self.stages[kind]
             stage = registry.registry().create(kind, spec["name"], **spec.get("options", {}))
@@ -153,6 +165,12 @@ class Calibration:
         """Image pixels ``(x, y)`` (N, 2) -> world metres ``(x, y)`` (N, 2), through the grid."""
         lattice = self.grid.px_to_lattice(xy)
         return self.workspace.lattice_to_world(lattice, self.grid.rows)
+
+    def world_to_pixels(self, xy: np.ndarray) -> np.ndarray:
+        """World metres ``(x, y)`` (N, 2) -> image pixels ``(x, y)`` (N, 2): the inverse of
+        :meth:`pixels_to_world` (what the planner avoids, drawn on the image)."""
+        lattice = self.workspace.world_to_lattice(xy, self.grid.rows)
+        return self.grid.lattice_to_px(lattice)
 
     def moved(self, matrix: np.ndarray) -> "Calibration":
         """This calibration for a camera moved by ``matrix`` (3x3, old pixels -> new pixels): every
@@ -391,7 +409,9 @@ class _Fields:
     def stages(self, data: dict) -> dict[str, dict[str, Any]]:
         stages = self.mapping(data, "stages")
         out = {}
-        for kind in STAGE_KINDS:
+        for kind in STAGE_KINDS + OPTIONAL_STAGE_KINDS:
+            if kind in OPTIONAL_STAGE_KINDS and kind not in stages:
+                continue
             spec = self.mapping(stages, kind, f"stages.{kind}")
             name = self.get(spec, "name", f"stages.{kind}.name")
             if not isinstance(name, str) or not name:

@@ -24,8 +24,8 @@ from ..widgets.picture import Picture
 from ..widgets.tables import fill_table
 from .base import JobScreen
 
-LEGEND = ("[#e62828]▆ occupied cells, outlines[/]  [#ffdc00]▢ MARs[/]  [#3cc83c]● symbols found[/]  "
-          "[#00c8e6]× symbol shapes off their cell[/]")
+LEGEND = ("[#e62828]▆ occupied cells, outlines[/]  [#ffdc00]▢ obstacle model[/]  [#ff8c00]▢ clearance[/]  "
+          "[#3cc83c]● symbols found[/]  [#00c8e6]× symbol shapes off their cell[/]")
 #: What :meth:`DetectionScreen.action_export` writes into the export folder.
 EXPORTS = ("overlay.png", "occupancy.png", "obstacles.geojson", "nav2/map.yaml", "nav2/map.pgm")
 
@@ -175,15 +175,14 @@ class DetectionScreen(JobScreen):
         det, image = s.detection, s.scene
 
         def job(progress):
-            for k, (name, write) in enumerate((("overlay.png", exports.write_overlay),
-                                               ("occupancy.png", exports.write_occupancy),
-                                               ("obstacles.geojson", exports.write_geojson),
-                                               ("nav2", exports.write_nav2))):
-                progress(f"writing {name}", k / 4)
-                if name == "overlay.png":
-                    write(folder / name, image, det)
-                else:
-                    write(folder / name, det)
+            model = s.obstacle_model  # what the planner gets, in every file
+            writers = (("overlay.png", lambda path: exports.write_overlay(path, image, det, model)),
+                       ("occupancy.png", lambda path: exports.write_occupancy(path, det)),
+                       ("obstacles.geojson", lambda path: exports.write_geojson(path, det, model)),
+                       ("nav2", lambda path: exports.write_nav2(path, det, model=model)))
+            for k, (name, write) in enumerate(writers):
+                progress(f"writing {name}", k / len(writers))
+                write(folder / name)
             return folder
 
         def export() -> None:
@@ -247,7 +246,8 @@ class DetectionScreen(JobScreen):
     def _overlay(self):
         assert self.session.scene is not None  # the detection was made on it
         # the summary at the right says what the caption would: the picture keeps every symbol visible
-        return overlay_image(self.session.scene, self.session.detection, caption=False)
+        s = self.session
+        return overlay_image(s.scene, s.detection, s.obstacle_model, caption=False)
 
     def _show(self, error: Exception | None = None) -> None:
         s = self.session
@@ -276,7 +276,7 @@ class DetectionScreen(JobScreen):
         summary.update("\n".join([
             f"symbols     {det.symbols_found} of {det.symbols_expected} found",
             f"occupied    {len(det.occupied_cells)} cells",
-            f"obstacles   {len(det.obstacles)}",
+            f"obstacles   {len(det.obstacles)}, drawn as {s.obstacle_model} (screen 3: m)",
             *camera_lines(det.camera),
             f"stages      {', '.join(det.stages.values())}"]))
 

@@ -21,7 +21,7 @@ from ..widgets.mapview import MapView
 from ..widgets.path_input import PathInput
 from .base import JobScreen
 
-LEGEND = ("[#e04040]⣿ obstacles[/]  [#b070ff]⣿ dynamic obstacles[/]  [#40e040]⠤ route[/]  "
+LEGEND = ("[#e04040]⣿ obstacles, ⠤ clearance (m: model)[/]  [#b070ff]⣿ dynamic obstacles[/]  [#40e040]⠤ route[/]  "
           "[#ffb000]⠔ old route[/]  [#ff4040]⠔ blocked route[/]  [black on cyan]S[/] start "
           "[black on cyan]G[/] goal [black on cyan]R[/] robot  [black on white]+[/] cursor")
 
@@ -54,6 +54,7 @@ class RouteScreen(JobScreen):
         Binding("o", "place_obstacle", "Obstacle"),
         Binding("x", "clear_dynamic", "Clear"),
         Binding("n", "newer_image", "Newer"),
+        Binding("m", "obstacle_model", "Model"),
         Binding("left_square_bracket", "robot(-1)", "Robot back", group=_ROBOT),
         Binding("right_square_bracket", "robot(1)", "Robot forward", group=_ROBOT),
         Binding("f", "fullscreen", "Zoom"),
@@ -227,6 +228,13 @@ class RouteScreen(JobScreen):
 
         self.start_job(f"detecting on {path}", job, done)
 
+    def action_obstacle_model(self) -> None:
+        """The next obstacle model (mar, parts, outline), as if chosen in the list: a route planned
+        on the old one is planned again."""
+        names = list(OBSTACLE_MODELS)
+        self.query_one("#obstacle-model", Select).value = names[(names.index(self.session.obstacle_model) + 1)
+                                                                % len(names)]
+
     def action_robot(self, step: int) -> None:
         s = self.session
         s.robot_fraction = float(np.clip(s.robot_fraction + 0.05 * step, 0.0, 1.0))
@@ -277,6 +285,7 @@ class RouteScreen(JobScreen):
             return
         route = None if s.route is None else s.route.waypoints
         view.draw(bounds=cal.world_bounds(), pitch=cal.workspace.pitch_m, obstacles=s.obstacles_m(),
+                  clearance=s.clearance_m(),
                   dynamic=s.dynamic, route=None if s.route_invalid else route,
                   blocked_route=route if s.route_invalid else None,
                   old_route=None if s.old_route is None else s.old_route.waypoints,
@@ -287,13 +296,14 @@ class RouteScreen(JobScreen):
             self._cursor_info()
             return
         r = s.route
-        t = "··· ms" if self.app.hide_timings else f"{r.time * 1e3:.1f} ms"
+        t = "··· ms" if self.app.hide_timings else f"{r.time_s * 1e3:.1f} ms"
         lines = []
         if s.route_invalid:
             lines += [f"[b $error]route INVALID[/]: {escape(s.route_invalid)}", ""]
         lines += [f"length      {r.length:.2f} m", f"time        {t}", f"status      {r.status}",
                   f"planner     {r.planner}", f"guarantee   {escape(self._guarantee(r.planner))}",
-                  f"waypoints   {len(r.waypoints)}", f"robot at    {s.robot_fraction:.0%} of route"]
+                  f"obstacles   {s.obstacle_model} (m)", f"waypoints   {len(r.waypoints)}",
+                  f"robot at    {s.robot_fraction:.0%} of route"]
         if s.old_route is not None:
             lines.append(f"old route   {s.old_route.length:.2f} m")
         if s.dynamic:

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import collections
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from textual import work
 from textual.app import ComposeResult
@@ -17,10 +18,19 @@ from textual.widgets import Button, Checkbox, DataTable, Footer, Header, Label, 
 from textual.worker import get_current_worker
 
 from ...errors import InputError
+from ...live import Watcher, open_source, paced
+from ...live.overlay import live_overlay
 from ..session import display_path
 from ..widgets.path_input import PathInput
 from ..widgets.picture import Picture
 from ..widgets.tables import fill_table
+
+if TYPE_CHECKING:
+    from textual import getters
+
+    from ...live.watcher import Event
+    from ..app import SbplanApp
+    from ..session import Session
 
 LEGEND = "[#e62828]▆ occupied cells[/]  [#ffdc00]▢ obstacles (MARs) with ids[/]  [#3cc83c]━ route S → G[/]"
 #: Seconds between redraws of the picture and the status while watching.
@@ -41,7 +51,7 @@ def default_source(map_dir: Path | None) -> str:
     return ""
 
 
-def event_line(e: dict) -> str:
+def event_line(e: Event) -> str:
     """One event as a short line for the log."""
     at = f"#{e['frame']:<5}" if e.get("frame") is not None else "      "
     kind = e["type"]
@@ -83,22 +93,30 @@ class WatchScreen(Screen):
         Binding("escape", "leave", "Back"),
     ]
 
-    def __init__(self, source: str | None = None, **kwargs) -> None:
+    if TYPE_CHECKING:  # the app this screen runs in (Textual's own pattern; it types it as any App)
+        app = getters.app(SbplanApp)
+
+    def __init__(self, source: str | None = None, **kwargs: Any) -> None:
         super().__init__(**kwargs)
         self._source = source
-        self.watcher = None
+        self.watcher: Watcher | None = None
         # events from the worker, drained by the refresh timer: the pipeline never waits for the screen
-        self._inbox: collections.deque = collections.deque()
-        self._shown_frame = None
-        self._ended: dict | None = None
+        self._inbox: collections.deque[Event] = collections.deque()
+        self._shown_frame: int | None = None
+        self._ended: Event | None = None
 
     @property
-    def session(self):
+    def session(self) -> Session:
         return self.app.session
 
     @property
+    def running(self) -> Watcher | None:
+        """The watcher while it watches (None before the first start and once it ended)."""
+        return self.watcher if self._ended is None else None
+
+    @property
     def watching(self) -> bool:
-        return self.watcher is not None and self._ended is None
+        return self.running is not None
 
     @property
     def paused(self) -> bool:
@@ -134,8 +152,9 @@ class WatchScreen(Screen):
 
     # -- actions ---------------------------------------------------------------------------------
     def action_toggle_watch(self) -> None:
-        if self.watching:
-            self.watcher.stop()
+        running = self.running
+        if running is not None:
+            running.stop()
             return
         s = self.session
         try:
@@ -143,44 +162,45 @@ class WatchScreen(Screen):
             source = self.query_one("#watch-source", PathInput).value.strip()
             if not source:
                 raise InputError("source: type a video file, image folder, camera index or URL")
-            from ...live import Watcher, open_source, paced
-
             start, goal = (s.start, s.goal) if s.start is not None and s.goal is not None else (None, None)
             src = open_source(source)
             if not src.live and self.query_one("#watch-realtime", Checkbox).value:
                 src = paced(src)  # as the camera delivered it: the latest frame, drops counted
-            self.watcher = Watcher(src, cal, start=start, goal=goal, keep_image=True)
+            self.watcher = watcher = Watcher(src, cal, start=start, goal=goal, keep_image=True)
         except Exception as exc:  # noqa: BLE001  (shown to the operator; the app stays usable)
             self.app.report_error(exc)
             return
         self._ended, self._shown_frame = None, None
         self._inbox.clear()
         self.query_one("#watch-log", Log).clear()
-        self._run(self.watcher)
+        self._run(watcher)
 
     def action_pause(self) -> None:
-        if not self.watching:
+        running = self.running
+        if running is None:
             return
-        if self.paused:
-            self.watcher.resume()
+        if running.paused:
+            running.resume()
         else:
-            self.watcher.pause()
+            running.pause()
         self._refresh(force=True)
 
     def action_replan(self) -> None:
         s = self.session
-        if not self.watching:
+        running = self.running
+        if running is None:
             self.app.report_error(InputError("replan: start watching first (w)"))
             return
         if s.start is None or s.goal is None:
             self.app.report_error(InputError("start/goal: set both on the route screen (3) first"))
             return
-        self.watcher.replan(s.start, s.goal)
+        running.replan(s.start, s.goal)
         self.notify("the route is planned again on the next frame", title="replan")
 
     def action_leave(self) -> None:
-        if self.watching:
-            self.watcher.stop()
+        running = self.running
+        if running is not None:
+            running.stop()
         self.app.pop_screen()
 
     def on_button_pressed(self, event: Button.Pressed) -> None:
@@ -194,7 +214,7 @@ class WatchScreen(Screen):
 
     # -- the worker ------------------------------------------------------------------------------
     @work(thread=True, exclusive=True, group="watch", exit_on_error=False)
-    def _run(self, watcher) -> None:
+    def _run(self, watcher: Watcher) -> None:
         worker = get_current_worker()
         try:
             for event in watcher.events():
@@ -205,7 +225,7 @@ class WatchScreen(Screen):
             if self.app.is_running:
                 self.app.call_from_thread(self.app.report_error, exc)
 
-    def _event(self, event: dict) -> bool:
+    def _event(self, event: Event) -> bool:
         """Show one event; True when the picture should be redrawn."""
         self.query_one("#watch-log", Log).write_line(event_line(event))
         if event["type"] == "ended":
@@ -225,8 +245,6 @@ class WatchScreen(Screen):
         state = w.state
         stats = w.stats()
         if state.image is not None and (force or state.frame != self._shown_frame):
-            from ...live.overlay import live_overlay
-
             self._shown_frame = state.frame
             self.query_one("#watch-picture", Picture).show(live_overlay(state.image, state, w.calibration))
         if self._ended is not None:

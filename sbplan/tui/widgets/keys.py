@@ -53,15 +53,16 @@ class KeyFooter(Footer):
         units = self._units()
         palette = self.show_command_palette and self.app.ENABLE_COMMAND_PALETTE \
             and self.app.COMMAND_PALETTE_BINDING in self.screen.active_bindings
-        self._total = sum(w for *_, w in units) + (_PALETTE_WIDTH if palette else 0)
+        # entries stand one column apart
+        self._total = sum(w for *_, w in units) + max(len(units) - 1, 0) + (_PALETTE_WIDTH if palette else 0)
         self._two_rows = self._total > self.app.size.width
         self.set_class(self._two_rows, "-two-rows")
         rows = [units]
         if self._two_rows:
             # the first row takes entries while they fit, the second the rest
             room, n, used = self.app.size.width - (_PALETTE_WIDTH if palette else 0), 0, 0
-            while n < len(units) - 1 and used + units[n][2] <= room:
-                used += units[n][2]
+            while n < len(units) - 1 and used + (n > 0) + units[n][2] <= room:
+                used += (n > 0) + units[n][2]
                 n += 1
             rows = [units[:n], units[n:]]
         for row in rows:

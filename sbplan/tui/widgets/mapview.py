@@ -61,12 +61,14 @@ class MapView(Widget, can_focus=True):
 
     # -- what to draw ----------------------------------------------------------------------------
     def draw(self, *, bounds, pitch, obstacles=(), dynamic=(), route=None, old_route=None, blocked_route=None,
-             start=None, goal=None, robot=None) -> None:
+             start=None, goal=None, robot=None, clearance=()) -> None:
         """Set the map's content (all world metres, ``(x, y)``) and repaint. ``blocked_route`` is
-        a route that can no longer be driven: drawn dotted in red instead of as the route."""
+        a route that can no longer be driven: drawn dotted in red instead of as the route.
+        ``clearance``: rings drawn as dotted lines around the obstacles (the planner's enlargement
+        by the robot radius)."""
         self.bounds, self.pitch = tuple(bounds), tuple(pitch)
         self.scene = dict(obstacles=list(obstacles), dynamic=list(dynamic), route=route, old_route=old_route,
-                          blocked_route=blocked_route, start=start, goal=goal, robot=robot)
+                          blocked_route=blocked_route, start=start, goal=goal, robot=robot, clearance=list(clearance))
         if self.cursor is None:
             xmin, ymin, xmax, ymax = self.bounds
             self.cursor = np.array([(xmin + xmax) / 2, (ymin + ymax) / 2])
@@ -91,6 +93,8 @@ class MapView(Widget, can_focus=True):
         sc = self.scene
         for poly in sc.get("obstacles", []):
             canvas.fill("obstacle", poly)
+        for ring in sc.get("clearance", []):
+            canvas.line("obstacle", ring, closed=True, dotted=True)
         for poly in sc.get("dynamic", []):
             canvas.fill("dynamic", poly)
         if sc.get("old_route") is not None:

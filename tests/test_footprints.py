@@ -1,0 +1,267 @@
+"""Obstacle footprints and obstacle models (issue 15), on the real renderer: two obstacles touching
+at a corner can be planned around with every interface's default, the route keeps off the true
+obstacles, every output shows the polygons the planner used, shadows and light do not grow
+footprints, and old calibrations fall back to the cells."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import cv2
+import numpy as np
+import pytest
+import shapely
+from shapely.geometry import LineString, Point, Polygon
+
+import sbplan
+from sbplan.bench.evaluation import FootprintScores, score_footprints
+from sbplan.detection import Detector, exports
+from sbplan.detection.calibration import Calibration, calibrate
+from sbplan.detection.footprints import cell_outlines
+from sbplan.detection.obstacles import DEFAULT_OBSTACLE_MODEL, OBSTACLE_MODELS, PARTS_RATIO, split_parts
+from sbplan.errors import InputError, MapFormatError, StartInObstacleError
+from sbplan.imageio import write_json
+from sbplan.planning import PlanningMap, load_obstacles
+from sbplan.synth import FloorSpec, SceneSpec, render_reference, render_scene
+from sbplan.workspace import Workspace
+
+FLOOR = FloorSpec(width=640, height=480, cols=8, rows=6)
+RADIUS = 0.1  # metres; the pitch is 0.5 m = 80 px
+
+
+@pytest.fixture(scope="module")
+def calibration() -> Calibration:
+    return calibrate(render_reference(FLOOR, seed=0), workspace=Workspace(pitch_m=(0.5, 0.5), robot_radius_m=RADIUS))
+
+
+@pytest.fixture(scope="module")
+def corner(calibration):
+    """Two 1.5-pitch squares touching at one corner (a labelled box and a striped one), and a start
+    and a goal in the free floor of the two notches beside them."""
+    side = 1.5 * FLOOR.pitch_px[0]
+    x0, y0 = FLOOR.col_x[1] - 0.3 * side / 1.5, FLOOR.row_y[1] - 0.3 * side / 1.5
+    a = np.array([[x0, y0], [x0 + side, y0], [x0 + side, y0 + side], [x0, y0 + side]])
+    image, truth = render_scene(FLOOR, SceneSpec(obstacles=[a, a + side]), seed=4)
+    start_px = np.array([x0 + 1.5 * side, y0 + 0.5 * side])
+    goal_px = np.array([x0 + 0.5 * side, y0 + 1.5 * side])
+    start, goal = calibration.pixels_to_world(np.stack([start_px, goal_px]))
+    return image, truth, Detector(calibration)(image), tuple(start), tuple(goal)
+
+
+def _keeps_off(route_m, truth, calibration) -> float:
+    """The route's least distance (pixels) to the true obstacles' outlines, 0 when it enters one."""
+    line = LineString(calibration.world_to_pixels(np.asarray(route_m)))
+    return min(line.distance(Polygon(p)) for p in truth.obstacles)
+
+
+def test_the_default_model_is_parts_everywhere():
+    import argparse
+
+    from sbplan.commands import demo, detect, plan
+
+    assert DEFAULT_OBSTACLE_MODEL == "parts" and OBSTACLE_MODELS == ("mar", "parts", "outline")
+    for command in (detect, plan, demo):
+        parser = argparse.ArgumentParser()
+        command.add_arguments(parser)
+        known = {a.dest: a for a in parser._actions}
+        assert known["obstacle_model"].default == "parts" and tuple(known["obstacle_model"].choices) == OBSTACLE_MODELS
+
+
+def test_touching_obstacles_are_planned_around_with_the_defaults(corner, calibration, tmp_path):
+    image, truth, detection, start, goal = corner
+    # one footprint for both squares (they touch), cut into parts that leave the notches free
+    assert len(detection.obstacles) == 1 and len(detection.obstacles[0].parts_m) >= 2
+    radius_px = RADIUS * FLOOR.pitch_px[0] / 0.5
+    # the API's default
+    route = sbplan.plan(detection, start, goal, robot_radius=RADIUS)
+    assert route.status == "exact"
+    assert _keeps_off(route.waypoints, truth, calibration) > 0.75 * radius_px
+    # ... and the outline model's
+    outline = sbplan.plan(detection, start, goal, robot_radius=RADIUS, obstacle_model="outline")
+    assert _keeps_off(outline.waypoints, truth, calibration) > 0.75 * radius_px
+    # the paper's MAR of the two squares covers the notches: what the parts model is for
+    with pytest.raises(StartInObstacleError):
+        sbplan.plan(detection, start, goal, robot_radius=RADIUS, obstacle_model="mar")
+    # the CLI's default, from the result file
+    write_json(tmp_path / "result.json", detection.to_json())
+    out = subprocess.run([sys.executable, "-m", "sbplan", "plan", "--obstacles", str(tmp_path / "result.json"),
+                          "--start", "{},{}".format(*start), "--goal", "{},{}".format(*goal),
+                          "--radius", str(RADIUS), "--json"], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    cli = json.loads(out.stdout)
+    assert cli["length"] == pytest.approx(route.length, abs=1e-5)
+    assert _keeps_off(cli["waypoints"], truth, calibration) > 0.75 * radius_px
+    # the TUI's default (its session plans what the route screen shows)
+    from sbplan.tui.session import Session
+
+    session = Session(calibration=calibration, detection=detection, start=start, goal=goal)
+    assert session.obstacle_model == "parts"
+    assert session.plan().length == pytest.approx(route.length, abs=1e-9)
+
+
+def test_outputs_show_the_polygons_the_planner_used(corner, calibration, tmp_path):
+    image, truth, detection, start, goal = corner
+    for model in OBSTACLE_MODELS:
+        planned = [Polygon(p) for p in detection.planner_obstacles(model)]
+        pmap = PlanningMap(planned, robot_radius=RADIUS, bounds=calibration.world_bounds())
+        want = shapely.union_all(pmap.obstacles)
+        # GeoJSON: the same polygons, read back as the planner reads them
+        exports.write_geojson(tmp_path / f"{model}.geojson", detection, model)
+        got = load_obstacles(tmp_path / f"{model}.geojson").polygons
+        assert len(got) == len(planned)
+        assert shapely.union_all(got).symmetric_difference(want).area < 1e-5  # the file rounds to 1e-6 m
+        # nav2: every map pixel they reach into is occupied, and no other
+        exports.write_nav2(tmp_path / model, detection, model=model)
+        nav2 = load_obstacles(tmp_path / model / "map.yaml")
+        assert want.difference(shapely.union_all(nav2.polygons)).area < 1e-9
+        pgm = cv2.imread(str(tmp_path / model / "map.pgm"), cv2.IMREAD_UNCHANGED)
+        res = min(calibration.workspace.pitch_m) / 10
+        rows, cols = np.nonzero(pgm == 0)
+        x0, y0 = nav2.bounds[0] + cols * res, nav2.bounds[1] + (pgm.shape[0] - 1 - rows) * res
+        pixels = shapely.box(x0, y0, x0 + res, y0 + res)
+        assert len(pixels) and (shapely.area(shapely.intersection(pixels, want)) > 1e-6 * res * res).all()
+        # overlay: the planner's polygons and clearance, drawn through the grid
+        rings, clearance = exports.overlay_polygons(detection, model)
+        assert len(rings) == len(pmap.obstacles)
+        cam = detection.camera  # the overlay draws in the frame: back to the calibration's pixels, then metres
+        for ring, poly in zip(rings, pmap.obstacles):
+            back = Polygon(calibration.pixels_to_world(cam.to_calibration(ring)))
+            assert back.symmetric_difference(poly).area < 1e-9
+        zone = shapely.union_all([Polygon(calibration.pixels_to_world(cam.to_calibration(r))) for r in clearance])
+        floor = shapely.box(*calibration.world_bounds())
+        assert zone.symmetric_difference(shapely.union_all(pmap.enlarged).intersection(floor)).area < 1e-9
+        picture = exports.overlay_image(image, detection, model)
+        yellow = cv2.inRange(picture, (0, 200, 235), (40, 240, 255)) > 0
+        for ring in rings:  # the yellow line runs along every polygon's edges
+            edge = np.concatenate([np.linspace(p, q, 20) for p, q in zip(ring, np.roll(ring, -1, axis=0))])
+            ij = np.clip(np.rint(edge).astype(int), 0, [FLOOR.width - 1, FLOOR.height - 1])
+            near = cv2.dilate(yellow.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
+            assert near[ij[:, 1], ij[:, 0]].mean() > 0.9
+
+
+def test_a_detection_is_planned_on_only_with_a_model_name(corner):
+    _, _, detection, start, goal = corner
+    with pytest.raises(InputError, match="obstacle_model"):
+        detection.planner_obstacles("hull")
+    with pytest.raises(InputError, match="only a Detection"):
+        sbplan.plan([np.zeros((3, 2)) + [[0, 0], [1, 0], [0, 1]]], (2, 2), (3, 3), robot_radius=0.1,
+                     obstacle_model="mar")
+
+
+def test_shadows_and_light_do_not_grow_footprints(calibration):
+    """The same obstacles (same seeds) under base light, cast shadows and a light gradient: the
+    footprints' area outside the true obstacles stays what it is under base light."""
+    floor = FloorSpec(width=800, height=600, cols=8, rows=5)
+    cal = calibrate(render_reference(floor, seed=0))
+    detector = Detector(cal)
+    extra = {}
+    for condition in ("clean", "shadows", "gradient"):
+        total = FootprintScores()
+        for seed in range(1, 7):
+            image, truth = render_scene(floor, SceneSpec(n_obstacles=3, condition=condition), seed=seed)
+            total = total + score_footprints(detector(image), truth)
+        extra[condition] = (total.reported_px - total.found_px) / total.true_px
+        assert total.recall > 0.95, condition
+    assert extra["clean"] < 0.3
+    assert extra["shadows"] <= extra["clean"] + 0.03, extra
+    assert extra["gradient"] <= extra["clean"] + 0.03, extra
+
+
+def test_footprints_are_tighter_than_cells(corner, calibration):
+    image, truth, detection, _, _ = corner
+    cells = Detector(calibration, footprint="cells")(image)
+    pixels = score_footprints(detection, truth)
+    paper = score_footprints(cells, truth)
+    assert pixels.recall > 0.98 and pixels.recall >= paper.recall
+    assert pixels.area_ratio < 1.3 < paper.area_ratio
+    assert pixels.swallowed["parts"] == 0 < paper.swallowed["mar"]
+
+
+def test_the_nav2_map_marks_exactly_the_pixels_an_obstacle_reaches_into():
+    """nav2_pixels against the plain definition (every pixel square's overlap, one by one): a
+    rectangle on pixel edges, a rotated one, a concave outline and one past the map's border."""
+    res, shape, origin = 0.05, (40, 60), (-0.5, 1.0)
+    rng = np.random.default_rng(3)
+    star = [(np.cos(t) * r, np.sin(t) * r) for t, r in zip(np.linspace(0, 2 * np.pi, 14, endpoint=False),
+                                                            rng.uniform(0.2, 0.6, 14))]
+    polygons = [np.array([[0.0, 1.5], [0.5, 1.5], [0.5, 2.0], [0.0, 2.0]]),
+                np.asarray(shapely.affinity.rotate(shapely.box(1.0, 1.3, 1.73, 1.61), 27).exterior.coords)[:-1],
+                np.array(star) + (1.4, 2.4), np.array([[2.2, 2.6], [2.8, 2.9], [2.3, 3.3]])]
+    rows, cols = np.mgrid[:shape[0], :shape[1]]
+    x0, y0 = origin[0] + cols * res, origin[1] + (shape[0] - 1 - rows) * res
+    squares = shapely.box(x0, y0, x0 + res, y0 + res)
+    for p in polygons:
+        got = exports.nav2_pixels([p], shape=shape, resolution=res, origin=origin)
+        want = shapely.area(shapely.intersection(squares, Polygon(p))) > 1e-6 * res * res
+        assert got.any() and (got == want).all()
+    # the one on pixel edges: its 10 x 10 pixels, not one more
+    assert exports.nav2_pixels(polygons[:1], shape=shape, resolution=res, origin=origin).sum() == 100
+
+
+def test_old_calibrations_fall_back_to_the_cells(corner, calibration):
+    image = corner[0]
+    data = calibration.to_json()
+    del data["symbol"]["reference_thumbnail_png"]
+    del data["stages"]["footprint"]  # written before the footprint stage existed
+    old = Calibration.from_json(data)
+    detector = Detector(old)
+    assert detector.stage_names["footprint"] == "cells"
+    result = detector(image)
+    cells = Detector(calibration, footprint="cells")(image)
+    assert [o.outline_px.tolist() for o in result.obstacles] == [o.outline_px.tolist() for o in cells.obstacles]
+    assert result.to_json()["stages"]["footprint"] == "cells"
+
+
+def test_every_occupied_cell_keeps_an_obstacle(calibration):
+    """A footprint stage that finds nothing: detection still reports every occupied cell."""
+    from sbplan.contracts import FootprintRefiner
+
+    class Nothing(FootprintRefiner):
+        name = "test-nothing"
+        description = "finds no outline at all"
+
+        def outlines(self, gray, occupied, occupancy, calibration, camera, prepared):
+            return []
+
+    image, _ = render_scene(FLOOR, SceneSpec(n_obstacles=2), seed=2)
+    result = Detector(calibration, footprint=Nothing())(image)
+    assert sorted(c for o in result.obstacles for c in o.cells) == result.occupied_cells
+    want = shapely.union_all([Polygon(o) for o in cell_outlines(result.occupancy)])
+    got = shapely.union_all([Polygon(o.outline_px) for o in result.obstacles])
+    assert got.symmetric_difference(want).area < 0.02 * want.area
+
+
+def test_parts_cover_the_outline_within_the_ratio():
+    square = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)
+    # a traced outline of two squares touching at a corner passes the corner twice
+    corner_touch = np.array([[0, 0], [1, 0], [1, 1], [2, 1], [2, 2], [1, 2], [1, 1], [0, 1]], float)
+    ell = np.array([[0, 0], [3, 0], [3, 1], [1, 1], [1, 3], [0, 3]], float)
+    t = np.linspace(0, 2 * np.pi, 90, endpoint=False)
+    ring = Polygon(np.c_[2 * np.cos(t), 2 * np.sin(t)], [np.c_[np.cos(t), np.sin(t)][::-1]])
+    for shape, most in ((corner_touch, 2), (ell, 3), (square, 1),
+                        (np.c_[np.cos(t), np.sin(t)], 1)):
+        outline = shapely.make_valid(Polygon(shape))
+        parts = split_parts(shape)
+        assert 1 <= len(parts) <= most
+        covered = shapely.union_all([Polygon(p) for p in parts])
+        # (OpenCV fits the rectangles in float32: they hold the outline to 1e-7 of its size)
+        assert outline.difference(covered).area < 1e-6 * outline.area
+        assert sum(Polygon(p).area for p in parts) <= PARTS_RATIO * outline.area
+    # a ring's outline is its outer circle: planning treats the hole as inside
+    assert len(split_parts(np.asarray(ring.exterior.coords)[:-1])) == 1
+
+
+def test_json_results_without_parts_are_cut_on_reading(corner, tmp_path):
+    _, _, detection, _, _ = corner
+    data = detection.to_json()
+    for ob in data["obstacles"]:
+        del ob["parts_m"]
+    write_json(tmp_path / "old.json", data)
+    got = load_obstacles(tmp_path / "old.json").polygons
+    want = [Polygon(p) for p in detection.planner_obstacles("parts")]
+    # cut again from the outline rounded to a micrometre: the cuts may move by as much
+    assert shapely.union_all(got).symmetric_difference(shapely.union_all(want)).area < 1e-3 * shapely.union_all(want).area
+    with pytest.raises(MapFormatError, match="obstacle_model"):
+        load_obstacles(tmp_path / "old.json", obstacle_model="hull")
