@@ -7,6 +7,8 @@ output passes before a command does its work.
   ``map.pgm``, the demo's output folder) into a temporary folder and swaps it with the old one in
   one step (Linux ``renameat2(RENAME_EXCHANGE)``): a reader sees the old set or the new one, never
   a mix, however many writers run at once and wherever one is killed.
+- :func:`write_folder` does the same for a set written by a function into a temporary folder
+  (rendered scenes, a video and its truth).
 - :func:`check_outputs` refuses, before any work, outputs that are not regular files (devices,
   FIFOs, symbolic links, folders), outputs that are one of the command's inputs, and one file named
   for two outputs.
@@ -186,10 +188,11 @@ def _fsync_dir(folder: Path) -> None:
             os.close(fd)
 
 
-def check_set_folder(folder: str | os.PathLike, names: Iterable[str], *, what: str = "output folder") -> Path:
+def check_set_folder(folder: str | os.PathLike, names: Iterable[str] | Callable[[str], bool], *,
+                     what: str = "output folder") -> Path:
     """Refuse a folder :func:`write_file_set` must not replace: a link, a file, the working folder
     or one above it, or a folder holding anything but ``names`` (top-level names the set may
-    hold) and sbplan's temporaries."""
+    hold, or a function saying whether a name is one) and sbplan's temporaries."""
     folder = Path(folder)
     _check_target(folder, folder=True)
     if folder.exists():
@@ -198,12 +201,12 @@ def check_set_folder(folder: str | os.PathLike, names: Iterable[str], *, what: s
         if full == here or full in here.parents:
             raise OutputError(f"{what} {folder}: is the working folder or holds it; sbplan replaces the whole "
                               "folder: give a folder of its own")
-        allowed = set(names)
+        allowed = names if callable(names) else set(names).__contains__
         try:
             entries = sorted(os.listdir(folder))
         except OSError as exc:
             raise _fail(folder, exc, "cannot be read") from None
-        foreign = [e for e in entries if e not in allowed and not (_TMP.match(e) or _OLD_TMP.match(e))]
+        foreign = [e for e in entries if not allowed(e) and not (_TMP.match(e) or _OLD_TMP.match(e))]
         if foreign:
             more = f" (and {len(foreign) - 1} more)" if len(foreign) > 1 else ""
             raise OutputError(f"{what} {folder}: holds {foreign[0]!r}{more}, which sbplan did not write there; "
@@ -241,9 +244,41 @@ def write_file_set(folder: str | os.PathLike, files: Mapping[str, bytes | str], 
     RENAME_EXCHANGE) the old folder is moved aside and the new one moved in: a reader may then
     find no folder for that instant, but still never a mix.
     """
-    folder = Path(folder)
     tops = {rel.split("/", 1)[0] for rel in files}
-    check_set_folder(folder, tops | set(names or ()))
+
+    def fill(tmp: Path) -> None:
+        for rel, content in files.items():
+            target = tmp.joinpath(*rel.split("/"))
+            target.parent.mkdir(parents=True, exist_ok=True)
+            data = content.encode("utf-8") if isinstance(content, str) else bytes(content)
+            with open(target, "wb") as fh:
+                fh.write(data)
+            os.chmod(target, 0o644)
+
+    write_folder(folder, fill, names=tops | set(names or ()))
+    return Path(folder)
+
+
+def write_folder(folder: str | os.PathLike, fill: Callable[[Path], Any], *,
+                 names: Iterable[str] | Callable[[str], bool]) -> Any:
+    """Write a folder as one unit, as :func:`write_file_set` does, with ``fill`` writing its files.
+
+    ``fill`` is given an empty temporary folder beside ``folder`` and writes the set into it (files
+    too large to hold in memory at once, a video that OpenCV writes to a path); every file in it
+    is then flushed to disk and the folder takes ``folder``'s place in one step. Killed or failing
+    in ``fill``, the old folder stays as it was.
+
+    Parameters
+    ----------
+    names : iterable of str, or function of str -> bool
+        The top-level names a folder of this kind may hold (see :func:`check_set_folder`).
+
+    Returns
+    -------
+    What ``fill`` returns.
+    """
+    folder = Path(folder)
+    check_set_folder(folder, names)
     parent = folder.parent if str(folder.parent) else Path(".")
     _make_folder(parent)
     try:
@@ -252,17 +287,15 @@ def write_file_set(folder: str | os.PathLike, files: Mapping[str, bytes | str], 
         raise _fail(folder, exc) from None
     try:
         os.chmod(tmp, 0o755)
-        for rel, content in files.items():
-            target = tmp.joinpath(*rel.split("/"))
-            target.parent.mkdir(parents=True, exist_ok=True)
-            data = content.encode("utf-8") if isinstance(content, str) else bytes(content)
-            with open(target, "wb") as fh:
-                fh.write(data)
-                fh.flush()
-                os.fsync(fh.fileno())
-            os.chmod(target, 0o644)
-        for sub in {tmp.joinpath(*rel.split("/")).parent for rel in files}:
-            _fsync_dir(sub)
+        result = fill(tmp)
+        for sub, _, names_in in os.walk(tmp):
+            for name in names_in:
+                fd = os.open(os.path.join(sub, name), os.O_RDONLY)
+                try:
+                    os.fsync(fd)
+                finally:
+                    os.close(fd)
+            _fsync_dir(Path(sub))
         _swap_in(tmp, folder)
     except BaseException as exc:
         shutil.rmtree(tmp, ignore_errors=True)
@@ -271,7 +304,7 @@ def write_file_set(folder: str | os.PathLike, files: Mapping[str, bytes | str], 
         raise
     _fsync_dir(parent)
     clean_stale_temporaries(parent)
-    return folder
+    return result
 
 
 def _swap_in(tmp: Path, folder: Path) -> None:

@@ -11,6 +11,8 @@ import contextlib
 import os
 import stat
 import struct
+import sys
+import tempfile
 import threading
 import zlib
 from pathlib import Path
@@ -82,8 +84,10 @@ def as_gray(image: Any, *, name: str = "image") -> np.ndarray:
 def image_size(head: bytes) -> tuple[int, int] | None:
     """Width and height of an encoded image from its header, without decoding it.
 
-    Reads PNG, JPEG, PNM (PBM/PGM/PPM), BMP, TIFF and WebP headers; None for other formats (and
-    for headers it cannot make sense of), which are then decoded and checked after decoding.
+    Reads the headers of every format OpenCV decodes here: PNG, JPEG, PNM (PBM/PGM/PPM/PAM/PFM),
+    BMP, TIFF and BigTIFF, WebP, GIF, JPEG 2000 (JP2 and raw codestream), AVIF, Radiance HDR and
+    Sun raster. None for other formats and for headers it cannot make sense of;
+    :func:`read_image` refuses those rather than decode them unchecked.
 
     Parameters
     ----------
@@ -92,7 +96,7 @@ def image_size(head: bytes) -> tuple[int, int] | None:
     """
     try:
         return _header_size(head)
-    except (struct.error, IndexError, ValueError):
+    except (struct.error, IndexError, KeyError, ValueError):
         return None
 
 
@@ -139,6 +143,61 @@ def _header_size(b: bytes) -> tuple[int, int] | None:
                 at = ifd + 10 + 12 * k
                 size[tag] = struct.unpack(e + ("H" if typ == 3 else "I"), b[at:at + (2 if typ == 3 else 4)])[0]
         return (size[256], size[257]) if len(size) == 2 else None
+    if b[:2] in (b"PF", b"Pf") and b[2:3] in b" \t\r\n":  # PFM: "PF\nW H\nscale\n"
+        w, h = (int(t) for t in b[2:256].split()[:2])
+        return w, h
+    if b[:3] == b"P7\n":  # PAM: "WIDTH W" and "HEIGHT H" lines
+        tags = dict(line.split()[:2] for line in b[3:4096].split(b"ENDHDR")[0].split(b"\n")
+                    if len(line.split()) >= 2)
+        return int(tags[b"WIDTH"]), int(tags[b"HEIGHT"])
+    if b[:4] in (b"II+\x00", b"MM\x00+"):  # BigTIFF: 8-byte offsets, 20-byte IFD entries
+        e = "<" if b[:2] == b"II" else ">"
+        (ifd,) = struct.unpack(e + "Q", b[8:16])
+        (n,) = struct.unpack(e + "Q", b[ifd:ifd + 8])
+        size = {}
+        for k in range(min(n, 4096)):
+            at = ifd + 8 + 20 * k
+            tag, typ = struct.unpack(e + "HH", b[at:at + 4])
+            if tag in (256, 257):
+                fmt = {3: "H", 4: "I", 16: "Q"}[typ]
+                size[tag] = struct.unpack(e + fmt, b[at + 12:at + 12 + struct.calcsize(fmt)])[0]
+        return (size[256], size[257]) if len(size) == 2 else None
+    if b[:6] in (b"GIF87a", b"GIF89a"):
+        return struct.unpack("<HH", b[6:10])
+    if b[:4] == b"\x59\xa6\x6a\x95":  # Sun raster
+        return struct.unpack(">II", b[4:12])
+    if b[:2] == b"#?":  # Radiance HDR: header lines, an empty line, then "-Y H +X W" (any order)
+        _, _, rest = b[:65536].partition(b"\n\n")
+        tokens = rest.split(b"\n", 1)[0].split()
+        axes = {tokens[k][1:2]: int(tokens[k + 1]) for k in (0, 2)}
+        return axes[b"X"], axes[b"Y"]
+    if b[:4] == b"\xff\x4f\xff\x51":  # JPEG 2000 codestream: SIZ gives the grid minus its offset
+        xs, ys, xo, yo = struct.unpack(">IIII", b[8:24])
+        return xs - xo, ys - yo
+    if b[4:8] == b"jP  ":  # JP2: boxes; the image header box lies in the jp2h box
+        i = 0
+        while i + 8 <= len(b):
+            length, kind = struct.unpack(">I4s", b[i:i + 8])
+            if kind == b"ihdr":
+                h, w = struct.unpack(">II", b[i + 8:i + 16])
+                return w, h
+            if kind == b"jp2h":
+                i += 8
+                continue
+            if length == 1:
+                (length,) = struct.unpack(">Q", b[i + 8:i + 16])
+            if length < 8:
+                return None
+            i += length
+        return None
+    if b[4:8] == b"ftyp" and b[8:12] in (b"avif", b"avis", b"heic", b"heix", b"mif1", b"msf1"):
+        # HEIF/AVIF: every item's 'ispe' property box; the largest bounds what is decoded
+        sizes = []
+        i = b.find(b"ispe", 0, 1 << 20)
+        while i >= 0:
+            sizes.append(struct.unpack(">II", b[i + 8:i + 16]))
+            i = b.find(b"ispe", i + 4, 1 << 20)
+        return max(sizes, key=lambda s: s[0] * s[1]) if sizes else None
     if b[:4] == b"RIFF" and b[8:12] == b"WEBP":
         chunk = b[12:16]
         if chunk == b"VP8 ":
@@ -245,29 +304,68 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
         data = np.fromfile(str(p), dtype=np.uint8)
     except OSError as exc:
         raise ImageError(f"{p}: cannot be read ({exc.strerror})") from None
+    if not data.size:
+        raise ImageError(f"{p}: not an image OpenCV can read (an empty file)")
     raw = data.tobytes()
-    size = image_size(raw) if data.size else None
-    if size is not None:
-        w, h = size
-        if w <= 0 or h <= 0:
-            raise ImageError(f"{p}: not an image OpenCV can read (its header says {w} x {h} pixels)")
-        limits.check("image_pixels", w * h, f"{p}: {w} x {h} pixels", "give a smaller image")
+    size = image_size(raw)
+    if size is None:
+        # decoding first and checking after is what a decompression bomb needs: a file whose
+        # size no header gives is not decoded at all
+        raise ImageError(f"{p}: not an image OpenCV can read, or a format whose size sbplan cannot read "
+                         "before decoding it (PNG, JPEG, TIFF, BMP, PNM, WebP, GIF, JPEG 2000, AVIF, HDR and "
+                         "Sun raster are read)")
+    w, h = size
+    if w <= 0 or h <= 0:
+        raise ImageError(f"{p}: not an image OpenCV can read (its header says {w} x {h} pixels)")
+    limits.check("image_pixels", w * h, f"{p}: {w} x {h} pixels", "give a smaller image")
     why = _damage(raw)
     if why is not None:
         raise ImageError(f"{p}: not an image OpenCV can read: {why}")
-    try:
-        with _opencv_silent():
-            image = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
-    except cv2.error:
-        image = None
+    with _opencv_silent():
+        image, said = _decode(data)
     if image is None:
-        raise ImageError(f"{p}: not an image OpenCV can read")
+        raise ImageError(f"{p}: not an image OpenCV can read" + (f" ({said[-1]})" if said else ""))
     h, w = image.shape[:2]
-    if h * w > top:  # a format whose header was not read: checked after decoding
-        limits.check("image_pixels", h * w, f"{p}: {w} x {h} pixels", "give a smaller image")
+    if h * w > top:  # a header that understated the size (a GIF frame larger than its screen)
+        limits.check("image_pixels", h * w, f"{p}: decoded to {w} x {h} pixels", "give a smaller image")
     if image.size == 0:
         raise ImageError(f"{p}: empty image")
     return image
+
+
+def _decode(data: np.ndarray) -> tuple[np.ndarray | None, list[str]]:
+    """``cv2.imdecode`` with what libpng says about a damaged file taken off the process's stderr.
+
+    libpng prints "libpng error: ..." on file descriptor 2 itself, below Python: a command would
+    print two lines for one damaged file. Its lines are returned, for the error message; anything
+    else written to descriptor 2 meanwhile (another thread) is passed on.
+    """
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError, AttributeError):  # no descriptor 2 (a daemon): nothing to keep clean
+        saved = None
+    if saved is None:
+        try:
+            return cv2.imdecode(data, cv2.IMREAD_UNCHANGED), []
+        except cv2.error:
+            return None, []
+    with tempfile.TemporaryFile() as caught:
+        os.dup2(caught.fileno(), 2)
+        try:
+            image = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
+        except cv2.error:
+            image = None
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+        caught.seek(0)
+        lines = caught.read().decode("utf-8", "replace").splitlines(keepends=True)
+    said = [line.strip() for line in lines if line.startswith("libpng ")]
+    others = "".join(line for line in lines if not line.startswith("libpng "))
+    if others:
+        os.write(2, others.encode("utf-8"))
+    return image, said
 
 
 def encode_image(path: str | os.PathLike, image: np.ndarray, *, text: dict[str, str] | None = None) -> bytes:

@@ -9,7 +9,8 @@ environment variable that raises (or lowers) it:
 limit                       environment variable         what it bounds
 ==========================  ===========================  =====================================================
 ``image_pixels``            ``SBPLAN_MAX_IMAGE_PIXELS``  pixels of an image read (checked from the file's header
-                                                         before it is decoded); default 50 million (8K video is 33)
+                                                         before it is decoded; a file whose size no header
+                                                         gives is not decoded); default 50 million (8K video is 33)
 ``map_pixels``              ``SBPLAN_MAX_MAP_PIXELS``    pixels of a raster sbplan makes (a nav2 map, an
                                                          occupancy image's obstacles); default 50 million
 ``obstacle_vertices``       ``SBPLAN_MAX_OBSTACLE_VERTICES``  vertices of all obstacles one plan works on, and
@@ -18,9 +19,10 @@ limit                       environment variable         what it bounds
                                                          cache takes their square in bytes: 400 MB)
 ==========================  ===========================  =====================================================
 
-Planning's time limit (``--time-limit`` / ``time_limit=``) bounds the route search; the work before
-it (merging an occupancy image's pixels into polygons, preparing the map) is bounded by
-``obstacle_vertices``.
+Planning's time limit (``--time-limit`` / ``time_limit=``) bounds the route search only; the work
+before it (merging an occupancy image's pixels into polygons, preparing the map) is not interrupted
+by it and is bounded by ``obstacle_vertices`` instead: at the default, up to about 1.8 s of merging
+and 1.6 s of preparing (19 845 vertices; 2 shared cores at load 4).
 """
 
 from __future__ import annotations

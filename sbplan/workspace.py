@@ -131,6 +131,12 @@ class Georeference:
         return cls(lat, lon, heading)
 
 
+#: Largest magnitude (metres) of a pitch, an origin or a route end. A grid of the largest image
+#: (thousands of cells a side) then stays far inside planning's 1e12 (a pitch of 1e308 overflowed
+#: every world coordinate to infinity, and detection answered with NaN).
+MAX_METRES = 1e6
+
+
 @dataclass(frozen=True)
 class Workspace:
     pitch_m: tuple[float, float] = (1.0, 1.0)
@@ -148,6 +154,13 @@ class Workspace:
         for key, v in (("origin.xy_m", self.origin_m), ("route.start_m", self.start_m), ("route.goal_m", self.goal_m)):
             if v is not None and (len(v) != 2 or not np.isfinite(v).all()):
                 raise MapFormatError(f"{key}: must be two finite numbers, got {v}")
+        bounded: tuple[tuple[str, tuple[float, ...] | None], ...] = (
+            ("grid.pitch_m", self.pitch_m), ("robot.radius_m", (self.robot_radius_m,)),
+            ("origin.xy_m", self.origin_m), ("route.start_m", self.start_m), ("route.goal_m", self.goal_m))
+        for key, values in bounded:
+            if values is not None and np.abs(values).max() > MAX_METRES:
+                raise MapFormatError(f"{key}: {max(np.abs(values)):g} m is beyond the {MAX_METRES:g} m a floor's "
+                                     f"coordinates may reach, got {values}")
 
     @property
     def origin(self) -> tuple[float, float]:

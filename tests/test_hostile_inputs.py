@@ -23,7 +23,7 @@ from sbplan.cli import main
 from sbplan.contracts import Binarizer, DescriptorMatcher, OccupancyMapper, Planner
 from sbplan.detection import Detector, exports
 from sbplan.detection.calibration import calibrate, load_calibration
-from sbplan.errors import (EXIT_CODES, CalibrationFileError, CameraMotionError, DetectionError, InputError,
+from sbplan.errors import (EXIT_CODES, CalibrationFileError, CameraMotionError, DetectionError, ImageError, InputError,
                            LimitError, MapFormatError, NoFloorError, StageError)
 from sbplan.imageio import load_image, write_image
 from sbplan.planning import load_obstacles, plan
@@ -218,6 +218,8 @@ _TINY_PNG = base64.b64encode(cv2.imencode(".png", np.zeros((3, 3), np.uint8))[1]
     ("stages.mapper", _DELETE, "stages.mapper"),
     ("workspace.robot_radius_m", float("nan"), "workspace"),
     ("workspace.pitch_m", [0.5, float("inf")], "workspace"),
+    ("workspace.pitch_m", [1e308, 1e308], "workspace"),  # finite, but every world coordinate overflows
+    ("workspace.origin_m", [-1e300, 0.0], "workspace"),
     ("other_polygons", {"a": 1}, "other_polygons"),
 ])
 def test_every_calibration_field_is_checked_on_load(site, tmp_path, path, value, field):
@@ -343,6 +345,57 @@ def test_huge_images_are_refused_from_their_header(tmp_path, capsys, monkeypatch
     with pytest.raises(InputError, match="SBPLAN_MAX_IMAGE_PIXELS"):
         load_image(small)
 
+
+
+def _bigtiff(image: np.ndarray) -> bytes:
+    """An uncompressed 8-bit grey BigTIFF (OpenCV writes none): header, one IFD, one strip."""
+    h, w = image.shape
+    entries = [(256, 4, w), (257, 4, h), (258, 3, 8), (259, 3, 1), (262, 3, 1), (273, 16, 0), (277, 3, 1),
+               (278, 4, h), (279, 16, h * w)]
+    data_at = 16 + 8 + 20 * len(entries) + 8
+    ifd = struct.pack("<Q", len(entries)) + b"".join(
+        struct.pack("<HHQQ", tag, typ, 1, data_at if tag == 273 else value) for tag, typ, value in entries)
+    return b"II+\x00" + struct.pack("<HHQ", 8, 0, 16) + ifd + struct.pack("<Q", 0) + image.tobytes()
+
+
+def test_every_format_opencv_decodes_is_sized_from_its_header_before_decoding(tmp_path, monkeypatch):
+    from sbplan.imageio import image_size
+
+    grey = np.zeros((37, 53), np.uint8)
+    grey[5:30, 7:40] = 200
+    files = {"bigtiff.tif": _bigtiff(grey)}
+    for ext in (".png", ".jpg", ".jp2", ".bmp", ".pbm", ".pgm", ".ppm", ".pam", ".pfm", ".sr", ".tif", ".webp",
+                ".hdr", ".avif", ".gif"):
+        image = cv2.merge([grey] * 3) if ext in (".ppm", ".gif", ".sr") else grey
+        if ext in (".pfm", ".hdr"):
+            image = cv2.merge([grey.astype(np.float32) / 255] * 3)
+        try:
+            ok, buf = cv2.imencode(ext, image)
+        except cv2.error:
+            continue  # no encoder in this OpenCV build: nothing of that format to test with
+        if ok:
+            files["image" + ext] = buf.tobytes()
+    assert len(files) >= 12, sorted(files)
+    for name, data in files.items():
+        (tmp_path / name).write_bytes(data)
+        assert image_size(data) == (53, 37), name
+        assert load_image(tmp_path / name).shape == (37, 53), name
+    # below the limit: refused from the header ("W x H pixels"), not after decoding ("decoded to")
+    monkeypatch.setenv("SBPLAN_MAX_IMAGE_PIXELS", "1000")
+    for name in files:
+        with pytest.raises(LimitError, match=rf"{name}: 53 x 37 pixels"):
+            load_image(tmp_path / name)
+    monkeypatch.delenv("SBPLAN_MAX_IMAGE_PIXELS")
+    # a GIF whose screen says 30000 x 30000 (a 1-pixel picture): refused before its 900 M pixels
+    gif = bytearray(files["image.gif"])
+    gif[6:10] = struct.pack("<HH", 30000, 30000)
+    (tmp_path / "bomb.gif").write_bytes(bytes(gif))
+    with pytest.raises(LimitError, match="bomb.gif: 30000 x 30000 pixels"):
+        load_image(tmp_path / "bomb.gif")
+    # a format whose size no header gives is not decoded at all (OpenEXR, unknown bytes)
+    (tmp_path / "unknown.img").write_bytes(b"\x76\x2f\x31\x01" + bytes(60))
+    with pytest.raises(ImageError, match="cannot read before decoding"):
+        load_image(tmp_path / "unknown.img")
 
 def test_a_huge_nav2_map_is_refused_before_it_is_made(site, tmp_path, capsys, monkeypatch):
     folder, _, _, detection = site
@@ -533,11 +586,15 @@ def test_verbose_after_the_command_shows_the_traceback(site, tmp_path, capsys):
 
 
 # -- bad-input lists: 0 tracebacks ---------------------------------------------------------------------
-def test_bad_input_lists_for_calibrate_detect_and_plan(site, tmp_path, capsys):
+def test_bad_input_lists_for_calibrate_detect_and_plan(site, tmp_path, capfd):
+    # capfd, not capsys: what native libraries print on descriptor 2 (libpng) counts as a line too
+    capsys = capfd
     folder = site[0]
     scene, cal, result, ref = folder / "scene.png", folder / "cal.json", folder / "result.json", folder / "reference.png"
     junk = tmp_path / "junk.png"
     junk.write_bytes(b"\x89PNG\r\n\x1a\n not really")
+    damaged = tmp_path / "damaged.png"  # a true header, then a broken zlib stream: libpng speaks
+    damaged.write_bytes(_png_claiming(48, 36)[:33] + struct.pack(">I", 7) + b"IDATgarbage" + bytes(4))
     empty = tmp_path / "empty.json"
     empty.write_text("")
     small = tmp_path / "small.png"
@@ -549,13 +606,14 @@ def test_bad_input_lists_for_calibrate_detect_and_plan(site, tmp_path, capsys):
     lists = {
         "calibrate": [
             [ref], [ref, "-o", tmp_path / "c.json", "--cell-size", "-1"], [ref, "-o", tmp_path / "c.json", "--cell-size", "nan"],
+            [ref, "-o", tmp_path / "c.json", "--cell-size", "1e308"],
             [junk, "-o", tmp_path / "c.json"], [tmp_path, "-o", tmp_path / "c.json"], [small, "-o", tmp_path / "c.json"],
             [ref, "-o", tmp_path / "c.json", "--workspace", toml], [ref, "-o", tmp_path / "c.json", "--workspace", bad_ws],
             [ref, "-o", tmp_path / "c.json", "--symbol", junk], [ref, "-o", tmp_path / "c.json", "--matcher", "x"],
             ["--update", empty, scene], ["--update", cal, small], ["--update", cal, scene, "--cell-size", "1"],
         ],
         "detect": [
-            [scene, "-c", empty], [scene, "-c", junk], [junk, "-c", cal], [small, "-c", cal], [scene, "-c", tmp_path],
+            [scene, "-c", empty], [scene, "-c", junk], [junk, "-c", cal], [damaged, "-c", cal], [small, "-c", cal], [scene, "-c", tmp_path],
             [scene, "-c", cal, "--nav2-resolution", "inf", "--nav2", tmp_path / "n"],
             [scene, "-c", cal, "--nav2-resolution", "0", "--nav2", tmp_path / "n"],
             [scene, "-c", cal, "--geojson", tmp_path], [scene, "-c", cal, "--binarizer", "nope"],
@@ -583,8 +641,8 @@ def test_bad_input_lists_for_calibrate_detect_and_plan(site, tmp_path, capsys):
         for argv in argvs:
             code, _, err = _run(capsys, command, *argv)
             _one_line_error(code, err)
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["empty.json", "junk.png", "small.png", "workspace.toml",
-                                                          "ws.toml"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["damaged.png", "empty.json", "junk.png", "small.png",
+                                                          "workspace.toml", "ws.toml"]
 
 
 # -- the service: the same garbage over HTTP gets a 4xx with a code, never a 500 ----------------------

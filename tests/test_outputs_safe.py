@@ -2,7 +2,7 @@
 
 Special files are never replaced (a FIFO, a symbolic link and a device stand-in made in the test's
 own folder: nothing is written outside it), an output is never one of the command's inputs, the
-files that belong together (a nav2 map, the demo's folder) are written as one unit that survives
+files that belong together (a nav2 map, the demo's folder, rendered scenes) are written as one unit that survives
 kill -9 and concurrent writers, and every output error is one line.
 """
 
@@ -15,6 +15,7 @@ import signal
 import subprocess
 import sys
 import textwrap
+import threading
 import time
 from pathlib import Path
 
@@ -178,13 +179,26 @@ def _consistent(folder: Path, variants: list[dict]) -> int | None:
 # Python costs half a second, and a forked writer is killed by SIGKILL like any process.
 WRITERS = textwrap.dedent("""
     import os, pickle, sys
-    from sbplan.files import write_file_set
+    from sbplan.files import write_file_set, write_folder
     variants, folder, names = pickle.load(open(sys.argv[1], "rb"))
+
+    def filler(files):  # write_folder's way (synth's scenes, maps, sequences): files written into a folder
+        def fill(tmp):
+            for rel, content in files.items():
+                path = os.path.join(tmp, *rel.split("/"))
+                os.makedirs(os.path.dirname(path), exist_ok=True)
+                with open(path, "wb") as fh:
+                    fh.write(content.encode() if isinstance(content, str) else content)
+        return fill
 
     def writer(start, count):
         i = start
         while count is None or i - start < count:
-            write_file_set(folder, variants[i % len(variants)], names=names)
+            files = variants[i % len(variants)]
+            if (i // 2) % 2:
+                write_folder(folder, filler(files), names=names)
+            else:
+                write_file_set(folder, files, names=names)
             if i == start:  # one write(2) per line: writers share the pipe
                 os.write(1, f"ready {os.getpid()}\\n".encode())
             i += 1
@@ -224,9 +238,15 @@ def writers(floor, tmp_path):
                                                         os.environ.get("PYTHONPATH", "")]))
     proc = subprocess.Popen([sys.executable, "-c", WRITERS, str(job)], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, env=env, cwd=tmp_path, text=True, bufsize=1)
-    yield proc, variants, tmp_path / "out"
-    proc.stdin.close()
-    proc.wait(timeout=30)
+    # bounded in time: a writer that hangs is killed, its pipe closes and the test fails on it
+    watchdog = threading.Timer(120, proc.kill)
+    watchdog.start()
+    try:
+        yield proc, variants, tmp_path / "out"
+    finally:
+        watchdog.cancel()
+        proc.stdin.close()
+        proc.wait(timeout=30)
 
 
 def test_kill_9_during_writes_leaves_only_complete_sets(floor, writers, tmp_path):
@@ -259,8 +279,6 @@ def test_kill_9_during_writes_leaves_only_complete_sets(floor, writers, tmp_path
 
 
 def test_four_concurrent_writers_leave_one_complete_set(writers, tmp_path):
-    import threading
-
     proc, variants, out = writers
     lines: list[str] = []
     reader = threading.Thread(target=lambda: lines.extend(iter(proc.stdout.readline, "")), daemon=True)
@@ -277,6 +295,44 @@ def test_four_concurrent_writers_leave_one_complete_set(writers, tmp_path):
     assert _consistent(out, variants) in (0, 1) and reads > 0
     assert [p.name for p in tmp_path.iterdir() if p.name.endswith(".tmp")] == []
 
+
+
+def test_synth_folders_are_replaced_whole_and_survive_kill_9(tmp_path, capsys):
+    out = tmp_path / "scenes"
+    args = ["synth", "-o", out, "--size", "320x240", "--grid", "6x4", "--obstacles", "1"]
+    names = lambda: sorted(p.name for p in out.iterdir())  # noqa: E731
+    assert main([str(a) for a in [*args, "--scenes", "2", "--seed", "1"]]) == 0
+    first = (out / "reference.png").read_bytes()
+    # another seed and fewer scenes: no scene of the first run stays beside the new reference
+    assert main([str(a) for a in [*args, "--scenes", "1", "--seed", "2"]]) == 0
+    assert names() == ["reference.png", "scene-01.json", "scene-01.png"]
+    assert (out / "reference.png").read_bytes() != first
+    kept = {p.name: p.read_bytes() for p in out.iterdir()}
+    # killed after its first scene (the lines are printed as the scenes are written): the last
+    # complete folder stays, the killed run's temporary goes with the next write
+    env = dict(os.environ, PYTHONUNBUFFERED="1", PYTHONPATH=os.pathsep.join(
+        [str(ROOT), str(ROOT / "plugins"), os.environ.get("PYTHONPATH", "")]))
+    proc = subprocess.Popen([sys.executable, "-m", "sbplan", *map(str, args), "--scenes", "40", "--seed", "3"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env, cwd=tmp_path, text=True)
+    watchdog = threading.Timer(120, proc.kill)
+    watchdog.start()
+    try:
+        line = proc.stdout.readline()
+        proc.kill()
+        proc.wait(timeout=30)
+    finally:
+        watchdog.cancel()
+    assert line.startswith("scene-01:"), (line, proc.stderr.read())
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == kept
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".scenes.")], "the kill hit no write"
+    # a file sbplan did not write there is refused, not deleted
+    (out / "notes.txt").write_text("mine")
+    code = main([str(a) for a in [*args, "--scenes", "1"]])
+    assert code == 4 and "notes.txt" in capsys.readouterr().err
+    (out / "notes.txt").unlink()
+    assert main([str(a) for a in [*args, "--scenes", "1", "--seed", "2"]]) == 0
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == kept  # same seed, same files
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
 
 def test_stale_temporaries_of_dead_processes_are_removed_live_ones_kept(tmp_path):
     dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)

@@ -48,6 +48,7 @@ def _pair(text: str, option: str, sep: str = "x") -> tuple[int, int]:
 
 def run(args: argparse.Namespace) -> int:
     # imported when the command runs: the CLI starts without loading numpy, OpenCV and the pipeline
+    from ..files import write_folder
     from ..imageio import write_atomic, write_image
     from ..synth import CONDITIONS, DEFAULT_SYMBOL, FloorSpec, SceneSpec, render_reference, render_scene
     from ..synth.maps import MAPS, build_map
@@ -87,13 +88,19 @@ def run(args: argparse.Namespace) -> int:
               f"condition {args.condition})")
         return 0
     scene = SceneSpec(n_obstacles=args.obstacles, condition=args.condition)
-    write_image(out / "reference.png", render_reference(floor, seed=args.seed, condition=args.condition))
-    for k in range(1, args.scenes + 1):
-        img, truth = render_scene(floor, scene, seed=args.seed + k)
-        write_image(out / f"scene-{k:02d}.png", img)
-        write_atomic(out / f"scene-{k:02d}.json", truth.to_json())
-        c = truth.counts
-        print(f"scene-{k:02d}: {c['occupied']} occupied, {c['ambiguous']} ambiguous, {c['free']} free cells")
+
+    def fill(tmp: Path) -> None:
+        write_image(tmp / "reference.png", render_reference(floor, seed=args.seed, condition=args.condition))
+        for k in range(1, args.scenes + 1):
+            img, truth = render_scene(floor, scene, seed=args.seed + k)
+            write_image(tmp / f"scene-{k:02d}.png", img)
+            write_atomic(tmp / f"scene-{k:02d}.json", truth.to_json())
+            c = truth.counts
+            print(f"scene-{k:02d}: {c['occupied']} occupied, {c['ambiguous']} ambiguous, {c['free']} free cells")
+
+    # one unit: a rerun with other options or fewer scenes leaves no scene of the old run beside
+    # the new reference, and a killed run leaves the old folder whole
+    write_folder(out, fill, names=lambda name: re.fullmatch(r"reference\.png|scene-\d+\.(png|json)", name) is not None)
     print(f"wrote {out}/: reference.png and {args.scenes} scene(s) ({cols} columns × {rows} rows of symbols, "
           f"{width} x {height} px, "
           f"condition {args.condition})")

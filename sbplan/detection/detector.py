@@ -51,9 +51,10 @@ SCRATCH_CELLS = 24
 #: (on the suite's worn floors scratched symbols broke at most 11 % of their points; 90 % of the
 #: occupied cells whose edge broke, more than 15 %).
 SCRATCH_BROKEN_SHARE = 0.25
-#: Symbols whose grey-level centres refine the registration (spread over the grid): 24 pin it to
-#: about 0.05 px on the renderer's scenes at half the cost of all 50.
-REGISTRATION_SYMBOLS = 24
+#: Symbols whose grey-level centres refine the registration (spread over the grid): 16 pin it to
+#: 0.01 px / 0.0007 deg under the renderer's camera movements (0.1 px / 0.003 deg under noise and
+#: blur), as 24 did, at a third of the cost of all 50.
+REGISTRATION_SYMBOLS = 16
 #: The edge check may rescue at most as many cells as the matcher found symbols (or this many, on a
 #: mostly covered floor): more, and it would be deciding the cells alone.
 RESCUE_MIN = 4

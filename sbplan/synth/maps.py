@@ -24,7 +24,8 @@ import shapely
 from shapely.geometry import LineString, Point, Polygon, box
 
 from ..errors import SceneError
-from ..imageio import write_atomic, write_image
+from ..files import write_file_set
+from ..imageio import encode_image
 from .floor import FloorSpec, SceneSpec
 from .render import render_reference, render_scene
 from .truth import FREE, OCCUPIED, GroundTruth
@@ -305,11 +306,13 @@ def build_map(name: str, out: str | os.PathLike | None = None) -> Path:
     """
     rec = recipe(name)
     folder = Path(out) if out is not None else Path("maps") / name
+    files: dict[str, bytes | str] = {}
     for fname, item in render_map(rec).items():
         if isinstance(item, np.ndarray):
-            write_image(folder / fname, item)
+            files[fname] = encode_image(fname, item)
         elif isinstance(item, GroundTruth):
-            write_atomic(folder / fname, item.to_json())
+            files[fname] = item.to_json()
         else:
-            write_atomic(folder / fname, item)
-    return folder
+            files[fname] = item
+    # one unit: a scene beside another run's truth would score detection against the wrong answer
+    return write_file_set(folder, files)

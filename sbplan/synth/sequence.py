@@ -38,6 +38,7 @@ from shapely.geometry import Point, Polygon
 from shapely import affinity
 
 from ..errors import SceneError
+from ..files import write_folder
 from ..imageio import write_atomic, write_image
 from .floor import FloorSpec, SceneSpec
 from .render import _floor, render_reference, render_scene
@@ -281,8 +282,14 @@ def write_sequence(folder: str | os.PathLike, floor: FloorSpec, spec: SequenceSp
     """
     if kind not in KINDS:
         raise SceneError(f"kind: expected one of {', '.join(KINDS)}, got {kind!r}")
-    out = Path(folder)
-    out.mkdir(parents=True, exist_ok=True)
+    # one unit (sbplan.files.write_folder): a video beside another run's truth would score every
+    # frame against the wrong answer
+    stream = write_folder(folder, lambda tmp: _write_sequence(tmp, floor, spec, seed=seed, kind=kind),
+                          names=("reference.png", "sequence.avi", "frames", "truth.jsonl", "sequence.json"))
+    return Path(folder) / stream
+
+
+def _write_sequence(out: Path, floor: FloorSpec, spec: SequenceSpec, *, seed: int, kind: str) -> str:
     write_image(out / "reference.png", render_reference(floor, seed=seed, condition=spec.condition))
     lines = []
     if kind == "avi":
@@ -310,9 +317,7 @@ def write_sequence(folder: str | os.PathLike, floor: FloorSpec, spec: SequenceSp
         os.replace(tmp, target)
     else:
         target = out / "frames"
-        target.mkdir(exist_ok=True)
-        for old in target.glob("frame-*.png"):
-            old.unlink()
+        target.mkdir()
         for k, image, truth in render_sequence(floor, spec, seed=seed):
             name = f"frame-{k:05d}.png"
             truth["written"] = None if truth["dropped"] else name
@@ -326,7 +331,7 @@ def write_sequence(folder: str | os.PathLike, floor: FloorSpec, spec: SequenceSp
     meta = {"format": FORMAT, "kind": kind, "stream": target.name, "seed": int(seed), "floor": floor.to_dict(),
             "sequence": spec.to_dict()}
     write_atomic(out / "sequence.json", json.dumps(meta, indent=1) + "\n", binary=False)
-    return target
+    return target.name
 
 
 def _zero_jpeg_frames(path: Path, frames: list[int]) -> None:

@@ -23,7 +23,7 @@ from ...contracts import (Binarizer, ContourApproximator, ContourExtractor, Desc
                           StageChoices, distances_between)
 from ...errors import CalibrationError, InputError
 from ...imageio import ImageInput, as_gray, load_image
-from ...workspace import Workspace, load_workspace
+from ...workspace import MAX_METRES, Workspace, load_workspace
 from ..grid import Grid, fit_grid
 from ..outline_checks import (EDGE_DEPTH_PX, edge_contrast, edge_probes, inner_deviations, inner_tolerance,
                               outline_deviation, reference_samples, signed_distance_map)
@@ -144,8 +144,8 @@ def calibrate(reference: ImageInput, *, symbol: ImageInput | None = None,
     if workspace is not None and not isinstance(workspace, Workspace):
         workspace = load_workspace(workspace)
     if cell_size is not None:
-        if not cell_size > 0:
-            raise InputError(f"cell_size: must be a positive number of metres, got {cell_size}")
+        if not 0 < cell_size <= MAX_METRES:
+            raise InputError(f"cell_size: must be a positive number of metres up to {MAX_METRES:g}, got {cell_size}")
         base = workspace or Workspace()
         workspace = replace(base, pitch_m=(float(cell_size), float(cell_size)), origin_m=base.origin_m)
     workspace = workspace or Workspace()
