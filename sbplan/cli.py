@@ -118,6 +118,11 @@ def main(argv: list[str] | None = None) -> int:
     argv = _join_negative_pairs(sys.argv[1:] if argv is None else list(argv))
     selected = next((a for a in argv if not a.startswith("-")), None)
     parser = build_parser(selected if selected in COMMANDS else None)
+    if selected in COMMANDS and argv[-1] == selected:
+        # a command group named alone (sbplan bench, synth, symbols) shows its help, not an error
+        module = import_command(COMMANDS[selected])
+        if getattr(module, "BARE_HELP", False):
+            argv = [*argv, "--help"]
     args = parser.parse_args(argv)
     if not getattr(args, "_run", None):
         parser.print_help()

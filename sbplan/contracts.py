@@ -327,6 +327,10 @@ class Planner(Stage):
     """Plans a collision-free route among polygonal obstacles."""
 
     kind = "planner"
+    #: What its routes are sure to be, in a few words for people (``sbplan plan`` and the
+    #: terminal app show it). Only a planner that proves its routes shortest sets ``exact``.
+    guarantee: ClassVar[str] = "collision-free; not proven shortest"
+    exact: ClassVar[bool] = False
 
     @abstractmethod
     def solve(self, problem: Problem, *, time_limit: float = 1.0) -> Route:

@@ -151,6 +151,13 @@ class NoRouteError(PlanningError):
     reason = "no-route"
 
 
+class Cancelled(SbplanError):
+    """A long step was stopped on request: a ``progress`` callback raised it between two steps
+    (the terminal app's Cancel), and the step's result was never made."""
+
+    exit_code = 130  # as an interrupted command
+
+
 #: exit code -> what it means, for ``sbplan --help`` and the docs
 EXIT_CODES = {
     0: "success",

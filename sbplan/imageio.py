@@ -7,14 +7,16 @@ target, so a failed run never leaves a half-written file and never destroys a go
 
 from __future__ import annotations
 
+import contextlib
 import os
 import stat
 import struct
 import sys
 import tempfile
+import threading
 import zlib
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterator
 
 import cv2
 import numpy as np
@@ -209,6 +211,58 @@ def _header_size(b: bytes) -> tuple[int, int] | None:
     return None
 
 
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+_quiet_lock = threading.Lock()
+_quiet_users = 0
+_quiet_saved: int | None = None
+
+
+@contextlib.contextmanager
+def _opencv_silent() -> Iterator[None]:
+    """OpenCV's own log lines (``[ WARN:0@...] ... PNG input buffer is incomplete``) off while
+    inside; our error says what went wrong instead. Counted, so that threads decoding at the
+    same time restore the level only when the last one leaves."""
+    global _quiet_users, _quiet_saved
+    log = cv2.utils.logging
+    with _quiet_lock:
+        if _quiet_users == 0:
+            _quiet_saved = log.getLogLevel()
+            log.setLogLevel(log.LOG_LEVEL_SILENT)
+        _quiet_users += 1
+    try:
+        yield
+    finally:
+        with _quiet_lock:
+            _quiet_users -= 1
+            if _quiet_users == 0 and _quiet_saved is not None:
+                log.setLogLevel(_quiet_saved)
+
+
+def _damage(data: bytes) -> str | None:
+    """Why a PNG or JPEG file is damaged (truncated, a chunk's checksum wrong), or None.
+
+    Checked before decoding because libpng and libjpeg print their own complaints to the
+    process's stderr (``libpng error: ...``), which no log level silences."""
+    if data.startswith(_PNG_SIGNATURE):
+        pos = len(_PNG_SIGNATURE)
+        while True:
+            if pos + 8 > len(data):
+                return "truncated PNG (no IEND chunk)"
+            length, kind = struct.unpack(">I4s", data[pos:pos + 8])
+            end = pos + 12 + length
+            if end > len(data):
+                return f"truncated PNG (its {kind.decode('latin-1')} chunk is cut off)"
+            crc = struct.unpack(">I", data[end - 4:end])[0]
+            if zlib.crc32(data[pos + 4:end - 4]) != crc:
+                return f"damaged PNG (the checksum of its {kind.decode('latin-1')} chunk is wrong)"
+            if kind == b"IEND":
+                return None
+            pos = end
+    if data.startswith(b"\xff\xd8") and not data.rstrip(b"\x00").endswith(b"\xff\xd9"):
+        return "truncated JPEG (no end-of-image marker)"
+    return None
+
+
 def load_image(path: str | os.PathLike) -> np.ndarray:
     """Read an image file as 8-bit grayscale, shape (H, W). 16-bit files are scaled.
 
@@ -222,10 +276,13 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
     """Read an image file as it is stored: (H, W) grey or (H, W, C) BGR(A), 8 or 16 bits (a nav2
     map's alpha channel and bit depth matter). Checked as :func:`load_image` checks it.
 
+    A damaged PNG or JPEG (cut short, a chunk's checksum wrong) is refused saying so, and nothing
+    else is printed: OpenCV's and the PNG and JPEG libraries' own messages are kept off stderr.
+
     Raises
     ------
     ImageError
-        No such file, not a regular file, or not an image OpenCV can read.
+        No such file, not a regular file, damaged, or not an image OpenCV can read.
     LimitError
         More pixels than the limit.
     """
@@ -249,7 +306,8 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
         raise ImageError(f"{p}: cannot be read ({exc.strerror})") from None
     if not data.size:
         raise ImageError(f"{p}: not an image OpenCV can read (an empty file)")
-    size = image_size(data.tobytes())
+    raw = data.tobytes()
+    size = image_size(raw)
     if size is None:
         # decoding first and checking after is what a decompression bomb needs: a file whose
         # size no header gives is not decoded at all
@@ -260,7 +318,11 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
     if w <= 0 or h <= 0:
         raise ImageError(f"{p}: not an image OpenCV can read (its header says {w} x {h} pixels)")
     limits.check("image_pixels", w * h, f"{p}: {w} x {h} pixels", "give a smaller image")
-    image, said = _decode(data)
+    why = _damage(raw)
+    if why is not None:
+        raise ImageError(f"{p}: not an image OpenCV can read: {why}")
+    with _opencv_silent():
+        image, said = _decode(data)
     if image is None:
         raise ImageError(f"{p}: not an image OpenCV can read" + (f" ({said[-1]})" if said else ""))
     h, w = image.shape[:2]

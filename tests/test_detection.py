@@ -162,6 +162,28 @@ def test_bad_references_and_scenes(calibration, reference):
         detect(np.zeros((480, 640), np.uint8), calibration)
 
 
+def test_overlay_caption_is_off_the_picture(calibration):
+    image, _ = render_scene(FLOOR, SceneSpec(n_obstacles=2), seed=6)
+    result = detect(image, calibration)
+    bare = export.overlay_image(image, result, caption=False)
+    captioned = export.overlay_image(image, result)
+    assert bare.shape == (*image.shape[:2], 3)
+    band = captioned.shape[0] - image.shape[0]
+    assert band > 0 and captioned.shape[1] == image.shape[1]
+    # the scene below the band is untouched by the caption: the top row of symbols stays visible
+    np.testing.assert_array_equal(captioned[band:], bare)
+    assert (captioned[:band] > 200).any()  # the caption's white text is in the band
+
+
+def test_grid_sizes_are_said_columns_first(calibration, reference):
+    # FLOOR is 8 columns by 5 rows; the message named the lattice "5 x 8"
+    broken = reference.copy()
+    x, y = calibration.grid.centres_px[2, 3]
+    cv2.circle(broken, (int(x), int(y)), int(np.sqrt(calibration.symbol_area_px)), int(np.median(reference)), -1)
+    with pytest.raises(CalibrationError, match="irregular grid: a lattice of 8 columns × 5 rows with no symbol"):
+        calibrate(broken)
+
+
 def run_cli(*args):
     import subprocess
     import sys

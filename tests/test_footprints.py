@@ -132,7 +132,7 @@ def test_outputs_show_the_polygons_the_planner_used(corner, calibration, tmp_pat
         zone = shapely.union_all([Polygon(calibration.pixels_to_world(cam.to_calibration(r))) for r in clearance])
         floor = shapely.box(*calibration.world_bounds())
         assert zone.symmetric_difference(shapely.union_all(pmap.enlarged).intersection(floor)).area < 1e-9
-        picture = exports.overlay_image(image, detection, model)
+        picture = exports.overlay_image(image, detection, model, caption=False)  # the frame's pixels only
         yellow = cv2.inRange(picture, (0, 200, 235), (40, 240, 255)) > 0
         for ring in rings:  # the yellow line runs along every polygon's edges
             edge = np.concatenate([np.linspace(p, q, 20) for p, q in zip(ring, np.roll(ring, -1, axis=0))])

@@ -47,6 +47,47 @@ def test_unreadable_files(tmp_path):
         load_image(tmp_path)
 
 
+def _damaged_files(folder):
+    """A rendered floor written as PNG and JPEG, then cut short or with bytes overwritten."""
+    from sbplan.synth import FloorSpec, render_reference
+
+    image = render_reference(FloorSpec(width=320, height=240, cols=4, rows=3), seed=0)
+    png = cv2.imencode(".png", image)[1].tobytes()
+    jpg = cv2.imencode(".jpg", image)[1].tobytes()
+    overwritten = bytearray(png)
+    overwritten[len(png) // 2:len(png) // 2 + 40] = b"x" * 40
+    files = {"truncated.png": png[: len(png) // 2], "overwritten.png": bytes(overwritten),
+             "truncated.jpg": jpg[: len(jpg) // 2]}
+    for name, data in files.items():
+        (folder / name).write_bytes(data)
+    return [folder / name for name in files]
+
+
+def test_damaged_files_give_our_one_line_and_nothing_from_opencv(tmp_path, capfd):
+    from sbplan.cli import main
+
+    for path in _damaged_files(tmp_path):
+        with pytest.raises(ImageError, match=r"not an image OpenCV can read: (truncated|damaged) (PNG|JPEG)"):
+            load_image(path)
+        # OpenCV's "[ WARN:0@...]" and libpng's "libpng error: ..." went to stderr (the file
+        # descriptor, which capfd reads) before our line
+        capfd.readouterr()
+        assert main(["calibrate", str(path), "-o", str(tmp_path / "c.json")]) != 0
+        err = capfd.readouterr().err
+        assert err.splitlines() == [f"sbplan: error: {path}: not an image OpenCV can read: "
+                                    f"{err.split(': ')[-1].strip()}"], err
+        assert "WARN" not in err and "libpng" not in err and "Corrupt" not in err
+
+
+def test_opencv_log_level_is_restored_after_reading(tmp_path):
+    log = cv2.utils.logging
+    before = log.getLogLevel()
+    ok = tmp_path / "ok.png"
+    cv2.imwrite(str(ok), np.full((8, 8), 128, np.uint8))
+    load_image(ok)
+    assert log.getLogLevel() == before
+
+
 def test_atomic_write_keeps_the_old_file_when_writing_fails(tmp_path):
     target = tmp_path / "calibration.json"
     write_json(target, {"good": 1})

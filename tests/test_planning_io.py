@@ -165,7 +165,8 @@ def test_cli_json_and_plot(tmp_path):
     assert wp[0].tolist() == [205, 445] and wp[-1].tolist() == [445, 55]
     assert data["length"] == pytest.approx(np.hypot(*np.diff(wp, axis=0).T).sum())
     img = cv2.imread(str(png))
-    assert img.shape == (800, 800, 3)
+    # an 800 x 800 plot area, with the axes' labels at its left and below it, the legend at its right
+    assert img.shape[0] > 800 and img.shape[1] > 900 and img.shape[2] == 3
     # The route's colour (BGR 200, 80, 0), the start's green and the goal's red are drawn.
     for bgr in ((200, 80, 0), (0, 170, 0), (0, 0, 220)):
         assert (np.abs(img.astype(int) - bgr).sum(axis=2) < 30).sum() > 20, bgr
@@ -178,7 +179,7 @@ def test_cli_ompl_planner_logs_only_with_verbose():
     assert r.returncode == 0, r.stderr
     assert "Info:" not in r.stdout + r.stderr and "Debug:" not in r.stdout + r.stderr
     assert r.stderr == ""
-    assert r.stdout.startswith("exact route by rrt-star")
+    assert r.stdout.startswith("route by rrt-star (")
     v = sbplan("-v", *args)
     assert v.returncode == 0 and "Info:" in v.stdout + v.stderr
 
@@ -224,7 +225,8 @@ def test_bench_plan_quick_runs_and_writes_an_ompl_log(tmp_path):
     r = sbplan("bench", "plan", "--quick", "--worlds", "rect-5", "--planners", "rrt-connect", "--queries", "3",
                "--time-limit", "0.05", "--json", "--ompl-log", log)
     assert r.returncode == 0, r.stderr
-    assert r.stderr == ""
+    # progress only on stderr (no OMPL log lines); stdout is the JSON
+    assert r.stderr and all(line.startswith("bench plan: [") for line in r.stderr.splitlines()), r.stderr
     data = json.loads(r.stdout)
     (row,) = data["rows"]
     assert row["world"] == "rect-5" and row["queries"] == 3 and row["obstacles"] == 5
@@ -274,3 +276,45 @@ def test_nav2_map_with_a_rotated_origin_rotates_the_cells_about_it(tmp_path, yaw
 def test_nav2_map_with_a_non_finite_yaw_is_a_map_format_error(tmp_path):
     with pytest.raises(MapFormatError, match="origin"):
         load_obstacles(write_map(tmp_path, np.zeros((3, 3), bool), resolution=1.0, origin=(0.0, 0.0, "nan")))
+
+
+def test_route_drawing_has_axes_a_scale_bar_a_legend_and_labelled_start_and_goal():
+    from sbplan.planning import plot
+
+    ob = box(1.0, 1.0, 2.0, 2.0)
+    kw = dict(route=np.array([[0.5, 0.5], [2.2, 0.8], [3.5, 2.5]]), start=(0.5, 0.5), goal=(3.5, 2.5), size=400)
+    img = plot.draw_route([ob], [ob.buffer(0.2)], (0.0, 0.0, 4.0, 3.0), **kw)
+    left, top = plot._LEFT, plot._TOP
+    w, h, s = 400, 300, 100.0  # the plot area and its pixels per metre
+    assert img.shape[:2] == (top + h + plot._BOTTOM, left + w + plot._LEGEND)
+
+    def ink(region):
+        return int((region.max(axis=2) < 120).sum())
+
+    # tick labels at the left of and below the plot area; axis names with the unit
+    assert ink(img[top:top + h, :left - 6]) > 100 and ink(img[top + h + 6:, left:left + w]) > 100
+    blank = plot.draw_route([ob], [ob.buffer(0.2)], (0.0, 0.0, 4.0, 3.0), units="px", **kw)
+    assert not np.array_equal(blank[top + h + 25:], img[top + h + 25:])  # "x (px)" instead of "x (m)"
+    # tick marks every nice step (0.5 m here) along the bottom edge of the plot area
+    assert plot.nice_step(4.0) == 0.5
+    for x in np.arange(0.0, 4.01, 0.5):
+        c = int(round(left + x * s))
+        assert ink(img[top + h + 1:top + h + 5, c - 1:c + 2]) > 0, x
+
+    def colour(region, bgr):
+        return int((np.abs(region.astype(int) - bgr).sum(axis=2) < 30).sum())
+
+    # the legend at the right shows obstacle, clearance, route, start and goal, and a scale bar
+    legend = img[:, left + w + 1:]
+    for bgr in ((60, 60, 60), (200, 215, 245), (200, 80, 0), (0, 170, 0), (0, 0, 220)):
+        assert colour(legend, bgr) > 20, bgr
+    assert ink(legend[top + 24 * 5 + 20:]) > 40  # the scale bar and its length
+    # "start" and "goal" written next to their discs (in their colours, beyond the disc)
+    for pt, bgr in ((kw["start"], (0, 170, 0)), (kw["goal"], (0, 0, 220))):
+        c, r = int(round(left + pt[0] * s)), int(round(top + (3.0 - pt[1]) * s))
+        yy, xx = np.mgrid[:img.shape[0], :img.shape[1]]
+        away = (np.hypot(xx - c, yy - r) > 9) & (np.hypot(xx - c, yy - r) < 60) & (xx < left + w + 1)
+        assert colour(np.where(away[..., None], img, 255), bgr) > 15, pt
+    # nothing is drawn outside the plot area but axes, labels and legend: the clearance is cut at its edge
+    clipped = plot.draw_route([box(3.7, 1.0, 4.5, 2.0)], [box(3.5, 0.8, 4.7, 2.2)], (0.0, 0.0, 4.0, 3.0), size=400)
+    assert colour(clipped[:, left + w + 2:left + w + 12], (200, 215, 245)) == 0

@@ -6,8 +6,6 @@ click, type and read what the screens show.
 
 from __future__ import annotations
 
-import asyncio
-import functools
 import json
 import threading
 from pathlib import Path
@@ -28,56 +26,12 @@ from sbplan.tui.session import point_along  # noqa: E402
 from sbplan.tui.widgets.busy import Busy  # noqa: E402
 from sbplan.tui.widgets.mapview import MapView  # noqa: E402
 
-REPO = Path(__file__).resolve().parents[1]
-MAP = REPO / "maps" / "paper-8x6"
+from _tui import (MAP, REPO, aio, error_messages, in_repo,  # noqa: E402,F401 (in_repo: autouse)
+                  needs_map, settle, text_of, type_into)
+
 SIZE = (160, 48)
 
-pytestmark = pytest.mark.skipif(not (MAP / "reference.png").is_file(), reason="maps/paper-8x6 not built")
-
-
-@pytest.fixture(autouse=True)
-def _in_repo(monkeypatch):
-    # paths on screen are shown relative to the working folder
-    monkeypatch.chdir(REPO)
-
-
-def aio(fn):
-    """Run an async test body with asyncio (no async pytest plugin is installed)."""
-    @functools.wraps(fn)
-    def wrapper(*args, **kwargs):
-        return asyncio.run(fn(*args, **kwargs))
-    return wrapper
-
-
-async def settle(app, pilot) -> None:
-    """Let every running step finish and the screens catch up."""
-    await pilot.pause()
-    await app.workers.wait_for_complete()
-    await pilot.pause()
-
-
-def text_of(app, selector: str) -> str:
-    return str(app.screen.query_one(selector, Static).render())
-
-
-def error_messages(app) -> list[str]:
-    return [n.message for n in app._notifications if n.severity == "error"]
-
-
-async def type_into(pilot, selector: str, text: str) -> None:
-    widget = pilot.app.screen.query_one(selector, Input)
-    widget.value = text
-    widget.focus()
-    await pilot.pause()
-
-
-async def calibrated_and_detected(app, pilot) -> None:
-    await settle(app, pilot)  # the reference opens on its own
-    await pilot.press("c")
-    await settle(app, pilot)
-    await pilot.press("2")
-    await pilot.press("d")
-    await settle(app, pilot)
+pytestmark = needs_map
 
 
 @aio
@@ -91,7 +45,7 @@ async def test_whole_job_calibrate_detect_plan_replan_export(tmp_path):
         cal = app.session.calibration
         assert (cal.grid.cols, cal.grid.rows) == (8, 6)
         stats = text_of(app, "#cal-stats")
-        assert "8 cols x 6 rows" in stats and f"{cal.threshold:.4f}" in stats and "margin" in stats
+        assert "8 columns × 6 rows" in stats and f"{cal.threshold:.4f}" in stats and "margin" in stats
 
         # detection: 13 occupied cells and 3 obstacles, in the summary and the table
         await pilot.press("2")
@@ -277,11 +231,12 @@ async def test_keys_work_while_a_detection_runs_and_cancel_discards_it(monkeypat
         assert app.current_mode == "route"
         await pilot.press("2")
         assert app.screen is screen and screen.busy
-        # cancel: the progress line goes at once, the result is discarded when the step returns
+        # cancel: the line says so until the step stops; the result is discarded
         await pilot.press("escape")
-        assert not screen.query_one(Busy).display
+        assert "cancelling" in str(screen.query_one("#busy-label", Static).render())
         gate.set()
         await settle(app, pilot)
+        assert not screen.query_one(Busy).display
         assert app.session.detection is None
         # and a new detection runs to the end
         await pilot.press("d")

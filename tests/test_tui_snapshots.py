@@ -1,6 +1,8 @@
-"""Snapshots of every screen of ``sbplan tui`` on maps/paper-8x6 (pytest-textual-snapshot).
+"""Snapshots of every screen of ``sbplan tui`` on maps/paper-8x6 (pytest-textual-snapshot), at
+80 x 24 (the side panel under the picture, keys on two rows where one cannot hold them) and at
+140 x 45.
 
-Deterministic by construction: a fixed terminal size, half-block pictures (no terminal graphics),
+Deterministic by construction: fixed terminal sizes, half-block pictures (no terminal graphics),
 timings shown as ``···`` (hide_timings), paths relative to the checkout, no toasts. Update with
 ``python3 -m pytest tests/test_tui_snapshots.py --snapshot-update`` and look at the SVGs.
 """
@@ -14,12 +16,14 @@ import pytest
 pytest.importorskip("textual")
 pytest.importorskip("pytest_textual_snapshot")
 
+from textual.widgets import DataTable  # noqa: E402
+
 from sbplan.tui.app import SbplanApp  # noqa: E402
 from sbplan.tui.session import point_along  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 MAP = "maps/paper-8x6"
-SIZE = (160, 48)
+SIZES = [(80, 24), (140, 45)]
 
 pytestmark = pytest.mark.skipif(not (REPO / MAP / "reference.png").is_file(), reason="maps/paper-8x6 not built")
 
@@ -42,56 +46,71 @@ async def settle(pilot) -> None:
     await pilot.pause()
 
 
-async def quiet(pilot) -> None:
-    """No toasts in the picture: they come and go with time.
+def tables_pending(app) -> bool:
+    """A DataTable sizes its columns to new rows only when it next goes idle."""
+    return any(t._require_update_dimensions or t._updated_cells or t._new_rows for t in app.screen.query(DataTable))
 
-    A DataTable sizes its columns to new rows only when it next goes idle, which on a loaded
-    machine can come after one ``pause()``; a few short real-time pauses let every widget reach idle.
-    """
+
+async def quiet(pilot) -> None:
+    """No toasts in the picture (they come and go with time), and every DataTable's columns sized
+    to its rows: waited for as a condition, since on a loaded machine a widget can reach idle
+    after any fixed number of pauses."""
     await settle(pilot)
     pilot.app.clear_notifications()
-    for _ in range(3):
-        await pilot.pause(0.05)
+    await pilot.pause()
+    for _ in range(200):
+        if not tables_pending(pilot.app):
+            break
+        await pilot.pause(0.02)
+    assert not tables_pending(pilot.app)
+    await pilot.pause()
 
 
-def test_calibration_screen(snap_compare):
+async def detected(pilot) -> None:
+    """Calibrated on its own, then screen 2, which detects on its own on first show."""
+    await settle(pilot)
+    await pilot.press("2")
+    await settle(pilot)
+
+
+async def zoomed(pilot) -> None:
+    """The detection picture full screen, 1.5 x about the middle: obstacle numbers stay text."""
+    await detected(pilot)
+    await pilot.press("f")
+    await pilot.press("plus")
+
+
+async def replanned(pilot) -> None:
+    """Screen 3 plans on its own on first show; a dynamic obstacle ahead of the robot replans."""
+    await detected(pilot)
+    await pilot.press("3")
+    await settle(pilot)
+    app = pilot.app
+    view = app.screen.query_one("#map")
+    x, y = point_along(app.session.route.waypoints, 0.6)
+    view.set_cursor((round(x, 1), round(y, 1)))
+    await pilot.press("o")
+
+
+async def helped(pilot) -> None:
+    await quiet(pilot)  # the reference opens and calibrates on its own; its toast goes first
+    await pilot.press("f1")
+
+
+#: screen -> how to get there from start-up
+SCREENS = {"calibration": settle, "detection": detected, "detection-zoomed": zoomed,
+           "route-after-a-replan": replanned, "help": helped}
+
+
+#: every screen at both sizes; the zoomed picture at 80 x 24 only, where zoom is needed to read it
+CASES = [(screen, size) for screen in SCREENS for size in SIZES
+         if not (screen == "detection-zoomed" and size != (80, 24))]
+
+
+@pytest.mark.parametrize("screen, size", CASES, ids=[f"{screen}-{w}x{h}" for screen, (w, h) in CASES])
+def test_screen(snap_compare, screen, size):
     async def run_before(pilot):
-        await settle(pilot)  # the reference opens and calibrates on its own
+        await SCREENS[screen](pilot)
         await quiet(pilot)
 
-    assert snap_compare(make_app(), terminal_size=SIZE, run_before=run_before)
-
-
-def test_detection_screen(snap_compare):
-    async def run_before(pilot):
-        await settle(pilot)
-        await pilot.press("2")
-        await settle(pilot)  # detects on its own on first show
-        await quiet(pilot)
-
-    assert snap_compare(make_app(), terminal_size=SIZE, run_before=run_before)
-
-
-def test_route_screen_after_a_replan(snap_compare):
-    async def run_before(pilot):
-        await settle(pilot)
-        await pilot.press("2")
-        await settle(pilot)
-        await pilot.press("3")
-        await settle(pilot)  # plans on its own on first show
-        app = pilot.app
-        view = app.screen.query_one("#map")
-        x, y = point_along(app.session.route.waypoints, 0.6)
-        view.set_cursor((round(x, 1), round(y, 1)))
-        await pilot.press("o")
-        await quiet(pilot)
-
-    assert snap_compare(make_app(), terminal_size=SIZE, run_before=run_before)
-
-
-def test_help_screen(snap_compare):
-    async def run_before(pilot):
-        await settle(pilot)
-        await quiet(pilot)
-
-    assert snap_compare(make_app(), press=["f1"], terminal_size=SIZE, run_before=run_before)
+    assert snap_compare(make_app(), terminal_size=size, run_before=run_before)

@@ -31,24 +31,31 @@ class _OmplPlanner(Planner):
                           simplify=self.simplify, seed=None if self.seed < 0 else self.seed)
 
 
-def _make(stage_name: str, ompl_name: str, what: str) -> type:
+#: What a sampling planner's route is sure to be: the motion validator is exact, the search is not.
+# (no route within the time limit does not mean there is none: NoRouteError says so)
+_FEASIBLE = "collision-free, not shortest"
+_NEAR_SHORTEST = "collision-free, near-shortest, not proven"
+
+
+def _make(stage_name: str, ompl_name: str, what: str, guarantee: str) -> type:
     cls = type(f"Ompl{ompl_name}", (_OmplPlanner,), {
         "__module__": __name__,
         "__annotations__": {"name": "ClassVar[str]", "aliases": "ClassVar[tuple[str, ...]]",
-                            "description": "ClassVar[str]"},
+                            "description": "ClassVar[str]", "guarantee": "ClassVar[str]"},
         "name": stage_name,
         # OMPL's own class name finds the stage too (sbplan plan --planner RRTstar)
         "aliases": (ompl_name,),
         "description": f"OMPL {ompl_name}: {what}",
+        "guarantee": guarantee,
     })
     return dataclass(kw_only=True, frozen=True)(cls)
 
 
 STAGES = [
-    _make("rrt-connect", "RRTConnect", "bidirectional RRT, fast, not optimal (simplified)"),
-    _make("rrt-star", "RRTstar", "asymptotically optimal RRT"),
-    _make("informed-rrt-star", "InformedRRTstar", "RRT* sampling an informed ellipse once solved"),
-    _make("prm-star", "PRMstar", "asymptotically optimal probabilistic roadmap"),
-    _make("bit-star", "BITstar", "batch informed trees, asymptotically optimal"),
-    _make("fmt-star", "FMT", "fast marching tree, asymptotically optimal"),
+    _make("rrt-connect", "RRTConnect", "bidirectional RRT, fast, not optimal (simplified)", _FEASIBLE),
+    _make("rrt-star", "RRTstar", "asymptotically optimal RRT", _NEAR_SHORTEST),
+    _make("informed-rrt-star", "InformedRRTstar", "RRT* sampling an informed ellipse once solved", _NEAR_SHORTEST),
+    _make("prm-star", "PRMstar", "asymptotically optimal probabilistic roadmap", _NEAR_SHORTEST),
+    _make("bit-star", "BITstar", "batch informed trees, asymptotically optimal", _NEAR_SHORTEST),
+    _make("fmt-star", "FMT", "fast marching tree, asymptotically optimal", _NEAR_SHORTEST),
 ]

@@ -137,8 +137,9 @@ def _timed(fn: Callable[[np.ndarray], R], image: np.ndarray, repeat: int) -> tup
 
 def measure(*, conditions: list[str] | None = None, scenes: int = 5, size: tuple[int, int] = (1280, 960),
             grid: tuple[int, int] = (10, 5), seed: int = 0, repeat: int = 3, slow_scenes: int = 1,
-            all_variants: bool = True) -> dict[str, Any]:
+            all_variants: bool = True, progress: Callable[[int, int, str], None] | None = None) -> dict[str, Any]:
     """Run the benchmark; return the results as a dict (what ``--json`` prints).
+    ``progress(done, total, what)`` is called before each condition's set-up and each method.
 
     Returns
     -------
@@ -164,7 +165,17 @@ def measure(*, conditions: list[str] | None = None, scenes: int = 5, size: tuple
     full_detector: Detector | None = None
     footprint_rows: list[dict] = []
     footprint_cpu: dict[str, list[float]] = {}
+    per_condition = len(variants) + len(BASELINES) + 1  # the set-up, sbplan's variants, the baselines
+    done = 0
+
+    def step(what: str) -> None:
+        nonlocal done
+        if progress is not None:
+            progress(done, len(names) * per_condition, what)
+        done += 1
+
     for cond in names:
+        step(f"{cond}: rendering and calibrating")
         sym = list(condition_scenes(cond, scenes=scenes, size=size, grid=grid, seed=seed))
         aru = list(condition_scenes(cond, scenes=scenes, size=size, grid=grid, seed=seed, layout="aruco"))
         reference, centres = sym[0][0], sym[0][2].centres_px
@@ -189,6 +200,7 @@ def measure(*, conditions: list[str] | None = None, scenes: int = 5, size: tuple
                 methods.append((label, False, (None, f"set-up failed: {exc}"), frames))
         detections = []
         for label, is_default, (fn, err), frames in methods:
+            step(f"{cond}: {label}")
             total, times, motion_px, motion_deg = Scores(), [], [], []
             if fn is not None:
                 for _, image, truth in frames:
@@ -299,8 +311,8 @@ def format_tables(result: dict[str, Any]) -> str:
     methods = list(dict.fromkeys(r["method"] for r in rows))
     by = {(r["condition"], r["method"]): r for r in rows}
     lines = [
-        f"{len(conds)} conditions x {s['scenes']} scenes, {s['size'][0]}x{s['size'][1]}, grid "
-        f"{s['grid'][0]}x{s['grid'][1]}, seed {s['seed']}; {s['repeat']} timed runs per frame, 1 thread; "
+        f"{len(conds)} conditions x {s['scenes']} scenes, {s['size'][0]}x{s['size'][1]}, grid of "
+        f"{s['grid'][0]} columns × {s['grid'][1]} rows, seed {s['seed']}; {s['repeat']} timed runs per frame, 1 thread; "
         f"{s['machine']}, Python {s['python']}, OpenCV {s['opencv']}, numpy {s['numpy']}",
         "columns: 'default' = sbplan's default pipeline; other sbplan columns swap one stage; "
         "aruco-grid sees the ArUco floor, the rest the symbol floor",
@@ -434,8 +446,12 @@ def plot(result: dict[str, Any], *, width: int = 1600, height: int = 1000) -> np
 
 
 def run(args: argparse.Namespace) -> int:
-    result = measure(conditions=args.conditions, scenes=args.scenes, size=args.size, grid=args.grid, seed=args.seed,
-                     repeat=args.repeat, slow_scenes=args.slow_scenes, all_variants=args.variants == "all")
+    from sbplan.commands._progress import StderrProgress
+
+    with StderrProgress("bench detect") as progress:
+        result = measure(conditions=args.conditions, scenes=args.scenes, size=args.size, grid=args.grid,
+                         seed=args.seed, repeat=args.repeat, slow_scenes=args.slow_scenes,
+                         all_variants=args.variants == "all", progress=progress)
     if args.plot:
         write_image(args.plot, plot(result))
     if args.json:

@@ -295,12 +295,17 @@ def run(args: argparse.Namespace) -> int:
             raise InputError(f"--planners: unknown OMPL planner {p!r}; known: {', '.join(OMPL_PLANNERS)}")
     if tl <= 0 or n_ompl < 0 or (args.queries is not None and args.queries < 1):
         raise InputError("--time-limit must be > 0, --ompl-queries >= 0, --queries >= 1")
+    from ..commands._progress import StderrProgress
+
     quiet(bool(getattr(args, "verbose", False)))
     rows, logs, notes = [], [], []
+    progress = StderrProgress("bench plan")
+    progress(0, 1, "building the worlds")
     all_worlds = list(worlds(args, args.seed, quick))
     if not any(w[0].startswith("map:") for w in all_worlds) and not quick:
         notes.append(f"no maps with scene-01.json + workspace.toml under {args.maps_dir}/: skipped")
-    for name, obs, bounds, radius, queries in all_worlds:
+    for k, (name, obs, bounds, radius, queries) in enumerate(all_worlds):
+        progress(k, len(all_worlds), name)
         if not queries:
             notes.append(f"{name}: no solvable query found, skipped")
             continue
@@ -312,6 +317,7 @@ def run(args: argparse.Namespace) -> int:
                 f"{base.stem}-{name.replace(':', '-')}{base.suffix or '.log'}")
             ompl_benchmark_log(name, obs, bounds, radius, queries[0], planners, tl, path)
             logs.append(str(path))
+    progress.close()
     if args.json:
         print(json.dumps({"rows": rows, "time_limit_s": tl, "seed": args.seed, "ompl_logs": logs,
                           "notes": notes}, indent=2))

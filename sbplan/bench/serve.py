@@ -340,6 +340,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("--clients, --paced, --seconds, --repeats and --queries must be positive")
     result = measure(clients=clients, paced=paced, seconds=args.seconds, warmup=args.warmup, repeats=args.repeats,
                      queries=args.queries, seed=args.seed,
-                     progress=None if args.json else (lambda text: print(f"  {text}", file=sys.stderr, flush=True)))
+                     # on stderr with --json too: stdout carries only the results
+                     progress=lambda text: print(f"  {text}", file=sys.stderr, flush=True))
     print(json.dumps(result, indent=2) if args.json else format_table(result))
     return 0

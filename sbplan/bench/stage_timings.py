@@ -73,8 +73,10 @@ def _time(fn: Callable[[], Any], repeat: int) -> dict[str, float]:
     return {"median_ms": float(np.median(runs)), "p90_ms": float(np.percentile(runs, 90))}
 
 
-def measure(*, repeat: int = 30, seed: int = 0) -> dict[str, Any]:
-    """Run the benchmark and return its results as a dict (what ``--json`` prints)."""
+def measure(*, repeat: int = 30, seed: int = 0,
+            progress: Callable[[int, int, str], None] | None = None) -> dict[str, Any]:
+    """Run the benchmark and return its results as a dict (what ``--json`` prints);
+    ``progress(done, total, what)`` is called before each stage is timed."""
     if repeat < 1:
         raise InputError(f"--repeat: must be at least 1, got {repeat}")
     cv2.setNumThreads(1)
@@ -84,7 +86,16 @@ def measure(*, repeat: int = 30, seed: int = 0) -> dict[str, Any]:
 
     reference = registry.extractor("opencv").extract(binary)
     outers = sorted((c for c in reference if not c.is_hole), key=len, reverse=True)[:N_SYMBOLS]
+    steps = [("extractor", n) for n in registry.extractor_names()] + \
+        [("approximator", n) for n in registry.approximator_names()] + [("matcher", n) for n in registry.matcher_names()]
+    done = iter(range(len(steps)))
+
+    def step(kind: str, name: str) -> None:
+        if progress is not None:
+            progress(next(done), len(steps), f"{kind} {name}")
+
     for name in registry.extractor_names():
+        step("extractor", name)
         ex = registry.extractor(name)
         count = len(ex.extract(binary))
         rows.append({"stage": "extractor", "name": name, "work": f"1280x960 frame -> {count} contours",
@@ -96,6 +107,7 @@ def measure(*, repeat: int = 30, seed: int = 0) -> dict[str, Any]:
 
     polygons: dict[str, list[np.ndarray]] = {}
     for name in registry.approximator_names():
+        step("approximator", name)
         ap = registry.approximator(name)
         polygons[name] = [ap.approximate(c) for c in outers]
         rows.append({"stage": "approximator", "name": name, "work": f"{len(outers)} contours",
@@ -105,6 +117,7 @@ def measure(*, repeat: int = 30, seed: int = 0) -> dict[str, Any]:
         polys = [c.points.astype(np.float64) for c in outers]
 
     for name in registry.matcher_names():
+        step("matcher", name)
         m = registry.matcher(name)
         desc = m.describe_many(polys)
         ref = desc[:1]
@@ -143,6 +156,9 @@ def format_table(result: dict[str, Any]) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    result = measure(repeat=args.repeat, seed=args.seed)
+    from ..commands._progress import StderrProgress
+
+    with StderrProgress("bench stages") as progress:
+        result = measure(repeat=args.repeat, seed=args.seed, progress=progress)
     print(json.dumps(result, indent=2) if args.json else format_table(result))
     return 0

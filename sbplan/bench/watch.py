@@ -36,7 +36,7 @@ import tempfile
 import threading
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Literal, Sequence
 
 import cv2
 import numpy as np
@@ -120,8 +120,10 @@ def _decode_only(avi: Path) -> tuple[int, float, float]:
 
 def measure(*, sizes: Sequence[tuple[int, int]] = ((1280, 960), (1920, 1080)), frames: int = 60, loops: int = 3,
             fps: float = 30.0, streams: int = 8, hysteresis: str = "3", seed: int = 0,
-            workdir: str | os.PathLike[str] | None = None) -> dict[str, Any]:
-    """Run the benchmark; the results as a dict (what ``--json`` prints)."""
+            workdir: str | os.PathLike[str] | None = None,
+            progress: Callable[[int, int, str], None] | None = None) -> dict[str, Any]:
+    """Run the benchmark; the results as a dict (what ``--json`` prints). ``progress(done,
+    total, what)`` is called before each part of each size."""
     for name, v, lo in (("--frames", frames, 24), ("--loops", loops, 1), ("--streams", streams, 0)):
         if isinstance(v, bool) or not isinstance(v, int) or v < lo:
             raise InputError(f"{name}: expected an integer >= {lo}, got {v!r}")
@@ -129,8 +131,19 @@ def measure(*, sizes: Sequence[tuple[int, int]] = ((1280, 960), (1920, 1080)), f
         raise InputError(f"--fps: expected a number in (0, 240], got {fps!r}")
     cv2.setNumThreads(1)
     rows = []
+    parts = 6 if streams else 5
+    done = 0
+
+    def step(what: str) -> None:
+        nonlocal done
+        if progress is not None:
+            progress(done, parts * len(sizes), what)
+        done += 1
+
     with tempfile.TemporaryDirectory(dir=workdir) as tmp:
         for size in sizes:
+            at = f"{size[0]}x{size[1]}"
+            step(f"{at}: rendering the stream and calibrating")
             floor, images, avi, cal = _stream(size, frames, seed, Path(tmp) / f"{size[0]}x{size[1]}")
             played = images * loops
             row: dict[str, Any] = {"size": list(size), "grid": [floor.cols, floor.rows], "frames": len(played)}
@@ -141,6 +154,7 @@ def measure(*, sizes: Sequence[tuple[int, int]] = ((1280, 960), (1920, 1080)), f
 
             # detection of one frame on its own, each frame repeated: the least CPU of the repeats is
             # close to what a quiet machine takes (others' load only ever adds)
+            step(f"{at}: detection of single frames")
             det = Detector(cal)
             per_frame = []
             for image in images[::5]:
@@ -153,11 +167,13 @@ def measure(*, sizes: Sequence[tuple[int, int]] = ((1280, 960), (1920, 1080)), f
             row["detect_cpu_ms"] = {"min_of_10": 1e3 * float(np.median([a for a, _ in per_frame])),
                                     "median": 1e3 * float(np.median([b for _, b in per_frame]))}
             # throughput, no decoding: as the watch runs, and every frame detected
+            step(f"{at}: throughput from memory")
             for key, skip in (("memory", True), ("memory_every_frame", False)):
                 st, wall, cpu = _watch(mem(), cal, hysteresis=hysteresis, latest=False, skip_unchanged=skip)
                 row[key] = {"fps": st["frames_processed"] / wall, "cpu_ms_per_frame": st["cpu_ms_per_frame"],
                             "frames": st["frames_processed"], "unchanged": st["frames_unchanged"]}
             # throughput with decoding (AVI through cv2.VideoCapture), and decoding alone
+            step(f"{at}: throughput decoding the AVI")
             n_dec, wall_dec, cpu_dec = 0, 0.0, 0.0
             st_all = []
             for _ in range(loops):
@@ -171,6 +187,7 @@ def measure(*, sizes: Sequence[tuple[int, int]] = ((1280, 960), (1920, 1080)), f
                           "pipeline_cpu_ms_per_frame": float(np.mean([s["cpu_ms_per_frame"] for s, _, _ in st_all]))}
             row["decode_only"] = {"fps": n_dec / wall_dec, "cpu_ms_per_frame": 1e3 * cpu_dec / n_dec}
             # live at fps: one stream, from memory and from the AVI
+            step(f"{at}: live at {fps:g} fps")
             for key, source in (("live_memory", paced(IterableSource(played, live=False, fps=fps))),
                                 ("live_avi", paced(VideoSource(str(avi)), speed=fps / 30.0))):
                 st, wall, cpu = _watch(source, cal, hysteresis=hysteresis)
@@ -178,6 +195,7 @@ def measure(*, sizes: Sequence[tuple[int, int]] = ((1280, 960), (1920, 1080)), f
                             "read": st["frames_read"], "latency_ms": st["latency_ms"],
                             "cpu_ms_per_frame": st["cpu_ms_per_frame"], "process_cpu_share": cpu / wall}
             if streams:
+                step(f"{at}: {streams} streams at once")
                 row["streams"] = _streams(played, cal, n=streams, fps=fps, hysteresis=hysteresis)
             rows.append(row)
     return {"setup": {"sizes": [list(s) for s in sizes], "frames": frames, "loops": loops, "fps": fps,
@@ -230,7 +248,7 @@ def format_tables(result: dict[str, Any]) -> str:
              ""]
     for r in result["rows"]:
         w, h = r["size"]
-        lines.append(f"{w}x{h}, grid {r['grid'][0]}x{r['grid'][1]}, {r['frames']} frames per run")
+        lines.append(f"{w}x{h}, grid of {r['grid'][0]} columns × {r['grid'][1]} rows, {r['frames']} frames per run")
         lines.append(f"  {'throughput (every frame, as fast as it goes)':<52} {'fps':>8} {'CPU ms/frame':>13}")
         m, e, a, d = r["memory"], r["memory_every_frame"], r["avi"], r["decode_only"]
         lines.append(f"  {'no decoding, as watched (unchanged frames reused)':<52} {m['fps']:8.1f} {m['cpu_ms_per_frame']:13.2f}"
@@ -263,8 +281,11 @@ def format_tables(result: dict[str, Any]) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    result = measure(sizes=args.sizes, frames=args.frames, loops=args.loops, fps=args.fps, streams=args.streams,
-                     hysteresis=args.hysteresis, seed=args.seed)
+    from ..commands._progress import StderrProgress
+
+    with StderrProgress("bench watch") as progress:
+        result = measure(sizes=args.sizes, frames=args.frames, loops=args.loops, fps=args.fps,
+                         streams=args.streams, hysteresis=args.hysteresis, seed=args.seed, progress=progress)
     if args.json:
         print(json.dumps(result, indent=1, default=lambda o: None))
     else:

@@ -6,6 +6,8 @@ import argparse
 from ..cli import import_command
 
 HELP = "run a benchmark (match, stages, ...) and print its table"
+#: ``sbplan bench`` alone prints the list of benchmarks.
+BARE_HELP = True
 
 #: Benchmark name -> module under sbplan.bench.
 BENCHMARKS: dict[str, str] = {

@@ -30,6 +30,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     # imported when the command runs: the CLI starts without loading numpy, OpenCV and the pipeline
     from ..detection.calibration import calibrate, load_calibration, update_calibration
+    from ..detection.grid import size_text
     from ..files import check_outputs
 
     if args.update is not None:
@@ -58,7 +59,7 @@ def run(args: argparse.Namespace) -> int:
     cal.save(args.output)
     g = cal.grid
     dx, dy = g.pitch_px
-    print(f"grid {g.cols} x {g.rows} ({cal.symbols_expected} symbols), pitch {dx:.1f} x {dy:.1f} px, "
+    print(f"grid {size_text(g.cols, g.rows)} ({cal.symbols_expected} symbols), pitch {dx:.1f} x {dy:.1f} px, "
           f"tolerance {g.tolerance_px:.1f} px")
     print(f"match threshold {cal.threshold:.4f} ({cal.stages['matcher']['name']}), margin {cal.margin:.1f}x "
           f"(nearest other contour / farthest symbol)")

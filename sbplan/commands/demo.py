@@ -67,6 +67,7 @@ def run(args: argparse.Namespace) -> int:
     # imported when the command runs: the CLI starts without loading numpy, OpenCV and the pipeline
     from ..detection.calibration import calibrate
     from ..detection import Detector
+    from ..detection.grid import size_text
     from ..errors import MapFormatError
     from ..files import check_set_folder, write_file_set
     from ..imageio import load_image
@@ -88,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
 
         workspace = replace(workspace or Workspace(), georeference=Georeference.parse(args.georef))
     cal = calibrate(folder / "reference.png", workspace=workspace)
-    print(f"  grid {cal.grid.cols} x {cal.grid.rows}, threshold {cal.threshold:.4f}, margin {cal.margin:.1f}x")
+    print(f"  grid {size_text(cal.grid.cols, cal.grid.rows)}, threshold {cal.threshold:.4f}, margin {cal.margin:.1f}x")
     image = load_image(folder / args.scene)
     detection = Detector(cal)(image)
     print(f"detecting on {args.scene}")
@@ -99,6 +100,7 @@ def run(args: argparse.Namespace) -> int:
     if ws.start_m and ws.goal_m:
         from ..planning import detection_obstacles, plan
         from ..planning.ompl_planners import quiet
+        from .plan import describe
 
         quiet(bool(getattr(args, "verbose", False)))  # OMPL's log only with -v
         # the detection's obstacles under the obstacle model, on its floor
@@ -106,8 +108,8 @@ def run(args: argparse.Namespace) -> int:
         route = plan(obstacles.polygons, ws.start_m, ws.goal_m, robot_radius=ws.robot_radius_m,
                      planner=args.planner, bounds=obstacles.bounds)
         pts = " -> ".join(f"({x:.2f}, {y:.2f})" for x, y in route.waypoints)
-        print(f"route ({route.planner}, {route.status}, obstacles as {args.obstacle_model}): {route.length:.3f} m "
-              f"in {route.time_s * 1e3:.2f} ms")
+        print(f"{describe(route)}, obstacles as {args.obstacle_model}: {route.length:.3f} m in "
+              f"{route.time_s * 1e3:.2f} ms")
         print(f"  {pts}")
     # every file of the run goes into the folder at once: a reader never sees one run's result
     # beside another run's GeoJSON (sbplan.files.write_file_set)

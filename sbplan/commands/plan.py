@@ -49,6 +49,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--plot", metavar="PNG", help="draw obstacles, clearance, start, goal and route into PNG")
 
 
+def describe(route) -> str:
+    """The start of the route's first line: "exact" only from a planner that proves its routes
+    shortest, then what the planner guarantees, e.g. ``exact route by aux-corner (proven shortest
+    for the robot's radius)`` or ``route by rrt-connect (collision-free, not shortest)``."""
+    from .. import registry
+
+    stage = registry.planner(route.planner)
+    kind = "approximate route" if route.status == "approximate" else ("exact route" if stage.exact else "route")
+    return f"{kind} by {route.planner} ({stage.guarantee})"
+
+
 def run(args: argparse.Namespace) -> int:
     # imported when the command runs: the CLI starts without loading numpy, OpenCV and the pipeline
     from ..files import check_outputs
@@ -72,13 +83,20 @@ def run(args: argparse.Namespace) -> int:
     if args.plot:
         from ..planning.plot import draw_route
 
+        # a plain occupancy image read without a resolution is in pixels; every other source in metres
+        image = args.obstacles.lower().endswith((".png", ".pgm", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff"))
+        units = "px" if image and args.resolution is None else "m"
         write_image(args.plot, draw_route(pm.obstacles, pm.enlarged, pm.bounds, route=route.waypoints,
-                                          start=args.start, goal=args.goal))
+                                          start=args.start, goal=args.goal, units=units))
     if args.json:
-        print(json.dumps(route.to_dict(), indent=2))
+        from .. import registry
+
+        stage = registry.planner(route.planner)
+        print(json.dumps({**route.to_dict(), "exact": bool(stage.exact) and route.status == "exact",
+                          "guarantee": stage.guarantee}, indent=2))
     else:
-        print(f"{route.status} route by {route.planner}: length {route.length:.6g}, "
-              f"{len(route.waypoints)} waypoints, {route.time_s * 1e3:.2f} ms")
+        print(f"{describe(route)}: length {route.length:.6g}, {len(route.waypoints)} waypoints, "
+              f"{route.time_s * 1e3:.2f} ms")
         for x, y in route.waypoints:
             print(f"  {x:.6g},{y:.6g}")
     return 0

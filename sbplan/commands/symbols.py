@@ -5,12 +5,9 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import time
-from typing import TYPE_CHECKING
 
-if TYPE_CHECKING:
-    from rich.progress import Progress, TaskID
-
+#: ``sbplan symbols`` alone prints the list of actions.
+BARE_HELP = True
 HELP = "choose the reference symbol (rank candidates), print floor tiles, show a symbol"
 DESCRIPTION = ("Paper section 3: rank candidate symbols by equations (2)-(4), regularity and confusion "
                "margin (rank); write a printable tile (render); draw a symbol in the terminal (show).")
@@ -75,42 +72,15 @@ def run(args: argparse.Namespace) -> int:
     return args._symbols(args)
 
 
-class _Progress:
-    """A rich progress bar on stderr, shown only once the work has taken more than a second."""
-
-    def __init__(self, delay: float = 1.0):
-        self.t0 = time.perf_counter()
-        self.delay = delay
-        self.bar: Progress | None = None
-        self.task: TaskID | None = None
-
-    def __call__(self, done: int, total: int, name: str) -> None:
-        if self.bar is None:
-            if time.perf_counter() - self.t0 < self.delay or done >= total:
-                return
-            # rich loads only when ranking has taken long enough to show a bar
-            from rich.console import Console
-            from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
-
-            self.bar = Progress(TextColumn("ranking symbols"), BarColumn(), MofNCompleteColumn(),
-                                TextColumn("{task.description}"), TimeRemainingColumn(),
-                                console=Console(stderr=True), transient=True)
-            self.bar.start()
-            self.task = self.bar.add_task(name, total=total)
-        if self.task is not None:  # (made with the bar)
-            self.bar.update(self.task, completed=done, description=name)
-
-    def close(self) -> None:
-        if self.bar is not None:
-            self.bar.stop()
-
-
 def _rank(args: argparse.Namespace) -> int:
     # imported when the command runs: the CLI starts without loading numpy, OpenCV and rich
     from ..imageio import write_json
     from ..symbols.rank import rank_symbols
 
-    progress = _Progress()
+    from ._progress import StderrProgress
+
+    # shown once ranking has taken a second: quick runs stay quiet
+    progress = StderrProgress("ranking symbols", delay=1.0)
     try:
         ranking = rank_symbols(args.names or None, matcher=args.matcher, binarizer=args.binarizer,
                                extractor=args.extractor, approximator=args.approximator,

@@ -9,6 +9,8 @@ from pathlib import Path
 from ..errors import InputError, SceneError
 
 HELP = "render a synthetic floor with obstacles and ground truth, or rebuild an example map"
+#: ``sbplan synth`` alone prints this command's help (it needs -o, --map or --list).
+BARE_HELP = True
 DESCRIPTION = ("Render reference.png (the empty floor), scene-XX.png with obstacles and scene-XX.json ground "
                "truth into a folder; or a camera stream with per-frame truth (--sequence avi|folder: obstacles "
                "entering, moving and leaving, a person's shadow, a camera bump, dropped and corrupt frames); or "
@@ -21,7 +23,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--map", metavar="NAME", help="rebuild a named example map (see --list)")
     parser.add_argument("--list", action="store_true", help="list the example maps and the conditions")
     parser.add_argument("--size", default="1280x960", metavar="WxH", help="image size in pixels (default: %(default)s)")
-    parser.add_argument("--grid", default="10x8", metavar="CxR", help="symbol columns x rows (default: %(default)s)")
+    parser.add_argument("--grid", default="10x8", metavar="CxR", help="columns x rows of symbols (default: %(default)s)")
     parser.add_argument("--symbol", default=None, metavar="NAME", help="registered symbol (default: the default symbol)")
     parser.add_argument("--scenes", type=int, default=1, metavar="N", help="number of scenes (default: %(default)s)")
     parser.add_argument("--obstacles", type=int, default=3, metavar="N", help="obstacles per scene (default: %(default)s)")
@@ -99,6 +101,7 @@ def run(args: argparse.Namespace) -> int:
     # one unit: a rerun with other options or fewer scenes leaves no scene of the old run beside
     # the new reference, and a killed run leaves the old folder whole
     write_folder(out, fill, names=lambda name: re.fullmatch(r"reference\.png|scene-\d+\.(png|json)", name) is not None)
-    print(f"wrote {out}/: reference.png and {args.scenes} scene(s) ({cols} x {rows} symbols, {width} x {height} px, "
+    print(f"wrote {out}/: reference.png and {args.scenes} scene(s) ({cols} columns × {rows} rows of symbols, "
+          f"{width} x {height} px, "
           f"condition {args.condition})")
     return 0

@@ -98,15 +98,33 @@ def overlay_polygons(detection: Detection, model: str = DEFAULT_OBSTACLE_MODEL, 
     return [ring(g) for g in obstacles], [ring(g) for g in clearance]
 
 
-def overlay_image(image: np.ndarray, detection: Detection, model: str = DEFAULT_OBSTACLE_MODEL, **planner: float) -> np.ndarray:
+def overlay_image(image: np.ndarray, detection: Detection, model: str = DEFAULT_OBSTACLE_MODEL, *,
+                  caption: bool = True, **planner: float) -> np.ndarray:
     """The scene with occupied cells shaded red, found symbols marked green, each obstacle's
     footprint outline (thin red), what the planner avoids under ``model`` (yellow) with its
     clearance (thin orange, :func:`overlay_polygons`), and obstacle numbers (as the paper's
-    figure 12). Returns a BGR image (H, W, 3) uint8.
+    figure 12).
 
     The detection's pixel coordinates are the calibration's; they are drawn where the camera's
-    movement (``detection.camera``) puts them in this frame. ``planner``: ``robot_radius``,
-    ``margin`` as :func:`planner_view` takes them."""
+    movement (``detection.camera``) puts them in this frame.
+
+    Parameters
+    ----------
+    image : ndarray (H, W) or (H, W, 3)
+        The frame the detection was made on.
+    detection : Detection
+    model : "mar" | "parts" | "outline"
+    caption : bool
+        Add a caption band above the scene (symbols found, occupied cells, obstacles, the model),
+        so that it hides none of the scene.
+    **planner
+        ``robot_radius``, ``margin`` as :func:`planner_view` takes them.
+
+    Returns
+    -------
+    ndarray of shape (H + band, W, 3), uint8, BGR
+        The scene's pixels are rows ``band:`` (``band`` is 0 without the caption).
+    """
     gray = as_gray(image)
     out = cv2.cvtColor(gray, cv2.COLOR_GRAY2BGR)
     grid = detection.calibration.grid
@@ -143,21 +161,24 @@ def overlay_image(image: np.ndarray, detection: Detection, model: str = DEFAULT_
         org = (int(cx - tw / 2), int(cy + tht / 2))
         cv2.putText(out, label, org, font, fs, _BLACK, th + 3 * scale, cv2.LINE_AA)
         cv2.putText(out, label, org, font, fs, _WHITE, th, cv2.LINE_AA)
+    if not caption:
+        return out
     rescued = f" (+{detection.symbols_rescued} by edge)" if detection.symbols_rescued else ""
     text = (f"{detection.symbols_found}/{detection.symbols_expected} symbols{rescued}, "
             f"{len(detection.occupied_cells)} occupied cells, {len(detection.obstacles)} obstacles ({model})")
     (tw, th), base = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, 0.55 * scale, scale)
-    banner = out[: th + base + 10 * scale, : tw + 16 * scale]
-    banner[:] = (banner * 0.35).astype(np.uint8)  # a dark band keeps the text legible on any floor
-    cv2.putText(out, text, (8 * scale, th + 5 * scale), cv2.FONT_HERSHEY_SIMPLEX, 0.55 * scale, _WHITE, scale, cv2.LINE_AA)
-    return out
+    # the caption gets its own band: drawn over the scene it hid the top row of symbols
+    band = np.full((th + base + 10 * scale, out.shape[1], 3), 40, np.uint8)
+    cv2.putText(band, text, (8 * scale, th + 5 * scale), cv2.FONT_HERSHEY_SIMPLEX, 0.55 * scale, _WHITE, scale,
+                cv2.LINE_AA)
+    return np.concatenate([band, out])
 
 
 def encode_overlay(path: str | os.PathLike, image: np.ndarray, detection: Detection,
                    model: str = DEFAULT_OBSTACLE_MODEL, **planner: float) -> bytes:
     """The overlay picture (:func:`overlay_image`), in the camera's pixels, encoded for ``path``'s
     ending; a PNG or PGM says what it is in its metadata (``sbplan: overlay``)."""
-    return encode_image(path, overlay_image(image, detection, model, **planner),
+    return encode_image(path, overlay_image(image, detection, model, caption=True, **planner),
                         text={"sbplan": "overlay", "Description": OVERLAY_NOTE})
 
 

@@ -124,6 +124,11 @@ class Grid:
         return cls(rows, cols, centres, homography, float(data["tolerance_px"]))
 
 
+def size_text(cols: int, rows: int) -> str:
+    """A grid's size as people read it, columns first: ``"8 columns × 6 rows"``."""
+    return f"{cols} column{'s' if cols != 1 else ''} × {rows} row{'s' if rows != 1 else ''}"
+
+
 def fit_grid(centres: np.ndarray, *, tolerance: float = 0.3, max_residual: float = 0.25) -> Grid:
     """Fit the symbol grid to symbol centres found in a reference image.
 
@@ -210,7 +215,7 @@ def fit_grid(centres: np.ndarray, *, tolerance: float = 0.3, max_residual: float
         missing = [(int(k // cols), int(k % cols)) for k in np.flatnonzero(counts == 0)[:5]]
         more = "" if (counts == 0).sum() <= 5 else f" and {(counts == 0).sum() - 5} more"
         raise CalibrationError(
-            f"irregular grid: {rows} x {cols} lattice with no symbol at (row, col) {missing}{more}; "
+            f"irregular grid: a lattice of {size_text(cols, rows)} with no symbol at (row, col) {missing}{more}; "
             "the reference image must show every symbol of a complete grid")
     centres_px = np.empty((rows, cols, 2))
     centres_px[idx[:, 1], idx[:, 0]] = pts

@@ -106,6 +106,8 @@ class AuxCornerPlanner(Planner):
 
     name: ClassVar[str] = NAME
     description: ClassVar[str] = "exact shortest route: lazy A* over the enlarged obstacles' convex corners"
+    guarantee: ClassVar[str] = "proven shortest for the robot's radius"
+    exact: ClassVar[bool] = True
 
     def solve(self, problem: Problem, *, time_limit: float = 1.0) -> Route:
         return solve_aux_corner(problem.map, problem.start, problem.goal, time_limit=time_limit)

@@ -226,7 +226,7 @@ class FloorSpec:
         if dx <= 0 or dy <= 0:
             raise SceneError("col_x/row_y: centres must increase strictly")
         if self.symbol_size is None and 0.45 * min(dx, dy) < 6:
-            raise SceneError(f"cols/rows: the {self.cols} x {self.rows} grid does not fit a {self.width} x "
+            raise SceneError(f"cols/rows: a grid of {self.cols} columns × {self.rows} rows does not fit a {self.width} x "
                              f"{self.height} image (pitch {dx:.3g} x {dy:.3g} px leaves symbols under 6 px)")
         size = 0.45 * min(dx, dy) if self.symbol_size is None else self.symbol_size
         s("symbol_size", _num("symbol_size", size, low=0, low_open=True))
@@ -238,7 +238,7 @@ class FloorSpec:
             raise SceneError(f"symbol_size: {self.symbol_size:.3g} px symbols overlap their neighbours "
                              f"at pitch ({dx:.3g}, {dy:.3g}) px")
         if xs[0] - ext[0] < 0 or xs[-1] + ext[0] > self.width or ys[0] - ext[1] < 0 or ys[-1] + ext[1] > self.height:
-            raise SceneError(f"pitch/margin: the {self.cols} x {self.rows} grid does not fit a "
+            raise SceneError(f"pitch/margin: a grid of {self.cols} columns × {self.rows} rows does not fit a "
                              f"{self.width} x {self.height} image")
 
     def _grid_axes(self) -> tuple[np.ndarray, np.ndarray]:

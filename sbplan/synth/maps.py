@@ -65,7 +65,7 @@ class MapRecipe:
     goal_m: tuple | None = None
 
 
-#: Paper figure 6: centres of area of the 8 x 6 symbols (pixels).
+#: Paper figure 6: centres of area of the symbols, by column and by row (pixels).
 PAPER_COL_X = (47, 146, 247, 346, 445, 544, 644, 744)
 PAPER_ROW_Y = (45, 138, 229, 322, 413, 506)
 
@@ -91,14 +91,14 @@ def _paper() -> MapRecipe:
     drum = _disc(600, 188, 100)                                  # cols 5-6, rows 1-2
     bench = np.array([(316, 484), (360, 474), (560, 476), (590, 492), (586, 544), (330, 546)], float)  # cols 3-5, row 5
     scene = SceneSpec(obstacles=[shelf, drum, bench], textures=("noise", "stripes", "labels"))
-    return MapRecipe("paper-8x6", "the paper's worked example (figure 6): 8 x 6 symbols, 3 obstacles hide 13",
-                     floor, ((scene, 1),), start_m=(0.25, 1.75), goal_m=(3.75, 1.75))
+    return MapRecipe("paper-8x6", "the paper's worked example (figure 6): 8 columns × 6 rows of symbols, "
+                     "3 obstacles hide 13", floor, ((scene, 1),), start_m=(0.25, 1.75), goal_m=(3.75, 1.75))
 
 
 def _large() -> MapRecipe:
     floor = FloorSpec(width=1920, height=1080, cols=16, rows=12, floor_seed=16)
     scene = SceneSpec(n_obstacles=5, size=(1.0, 2.4), effects={"noise": 1.0})
-    return MapRecipe("large-16x12", "a large floor: 16 x 12 symbols at 1920 x 1080, five obstacles",
+    return MapRecipe("large-16x12", "a large floor: 16 columns × 12 rows of symbols at 1920 x 1080, five obstacles",
                      floor, ((scene, 3),), reference_condition="clean", pitch_m=(0.4, 0.4), radius_m=0.15)
 
 
@@ -123,7 +123,7 @@ def _crowded() -> MapRecipe:
     floor = FloorSpec(width=1024, height=768, cols=12, rows=9, floor_seed=41)
     # a gap of about a pitch keeps the obstacles' cell groups apart, so that a route exists
     scene = SceneSpec(n_obstacles=10, size=(0.6, 1.3), min_gap=90.0, condition="textured")
-    return MapRecipe("crowded", "a crowded floor: ten obstacles of every kind with strong textures on 12 x 9",
+    return MapRecipe("crowded", "a crowded floor: ten obstacles of every kind with strong textures on 12 columns × 9 rows",
                      floor, ((scene, 11),), radius_m=0.1)
 
 
@@ -152,11 +152,11 @@ RECIPES: dict[str, Callable[[], MapRecipe]] = {
 }
 #: Map name -> one-line description.
 MAPS: dict[str, str] = {
-    "paper-8x6": "the paper's worked example (figure 6): 8 x 6 symbols, 3 obstacles hide 13",
-    "large-16x12": "a large floor: 16 x 12 symbols at 1920 x 1080, five obstacles",
+    "paper-8x6": "the paper's worked example (figure 6): 8 columns × 6 rows of symbols, 3 obstacles hide 13",
+    "large-16x12": "a large floor: 16 columns × 12 rows of symbols at 1920 x 1080, five obstacles",
     "adverse-lighting": "adverse lighting (gradient, shadows, glare, noise, JPEG); scene-02 in low light",
     "tilted-camera": "a camera tilted a few degrees with mild lens distortion",
-    "crowded": "a crowded floor: ten textured obstacles on 12 x 9 symbols",
+    "crowded": "a crowded floor: ten textured obstacles on 12 columns × 9 rows of symbols",
     "edge-clips": "obstacles between symbols that only clip symbol edges",
 }
 

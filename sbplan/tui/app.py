@@ -11,7 +11,7 @@ from textual.binding import Binding
 from textual.screen import Screen
 from textual_image.widget import HalfcellImage
 
-from ..errors import SbplanError
+from ..errors import CameraMotionError, SbplanError
 from .screens.calibration import CalibrationScreen
 from .screens.detection import DetectionScreen
 from .screens.help import HelpScreen
@@ -26,6 +26,9 @@ ACTIONS = [
     ("Save calibration", "write the calibration JSON", "calibration", "save"),
     ("Detect", "open the current image and detect occupied cells and obstacles", "detection", "detect"),
     ("Export", "write overlay, occupancy, GeoJSON and nav2 map", "detection", "export"),
+    ("Re-anchor calibration", "move the calibration to the camera's present pose (asks before overwriting)",
+     "detection", "reanchor"),
+    ("Picture full screen", "the current picture over the whole terminal, with zoom", None, "fullscreen"),
     ("Plan route", "plan from start to goal with the chosen planner", "route", "plan"),
     ("Set start at cursor", "move the start to the map cursor", "route", "set_start"),
     ("Set goal at cursor", "move the goal to the map cursor", "route", "set_goal"),
@@ -33,8 +36,10 @@ ACTIONS = [
     ("Newer image: detect and replan", "obstacles on cells that were free become dynamic obstacles", "route", "newer_image"),
     ("Robot forward", "move the robot 5 % along the route", "route", "robot(1)"),
     ("Robot back", "move the robot 5 % back along the route", "route", "robot(-1)"),
-    ("Clear dynamic obstacles", "forget the obstacles placed or reported since the detection", "route", "clear_dynamic"),
-    ("Obstacle model", "what stands for each obstacle: its MAR, rectangles of its parts, or its outline (CLI --obstacle-model)", "route", "obstacle_model"),
+    ("Clear dynamic obstacles", "forget the obstacles placed or reported since the detection; replan",
+     "route", "clear_dynamic"),
+    ("Obstacle model", "what stands for each obstacle: its MAR, rectangles of its parts, or its outline "
+     "(CLI --obstacle-model); replan", "route", "obstacle_model"),
     ("Cancel running step", "stop waiting for the current step and discard its result", None, "cancel"),
 ]
 
@@ -59,14 +64,18 @@ class SbplanApp(App):
     TITLE = "sbplan"
     MODES = {"calibration": CalibrationScreen, "detection": DetectionScreen, "route": RouteScreen}
     DEFAULT_MODE = "calibration"
+    # The footer shows the screens' keys as one entry, so that every key fits in 80 columns.
+    _SCREENS = Binding.Group("Screens")
     BINDINGS = [
-        Binding("1", "switch_mode('calibration')", "Calibration"),
-        Binding("2", "switch_mode('detection')", "Detection"),
-        Binding("3", "switch_mode('route')", "Route"),
+        Binding("1", "switch_mode('calibration')", "Calibration", group=_SCREENS),
+        Binding("2", "switch_mode('detection')", "Detection", group=_SCREENS),
+        Binding("3", "switch_mode('route')", "Route", group=_SCREENS),
         Binding("w", "watch", "Watch", show=False),
         Binding("f1,question_mark", "help", "Help"),
         Binding("q", "quit", "Quit"),
     ]
+    # Below 110 columns the side panel goes under the picture (app.tcss: .-narrow).
+    HORIZONTAL_BREAKPOINTS = [(0, "-narrow"), (110, "-wide")]
 
     def __init__(self, map_dir: str | os.PathLike | None = None, *, auto: bool = True, image_class=None,
                  hide_timings: bool = False) -> None:
@@ -75,14 +84,22 @@ class SbplanApp(App):
         self.auto = auto
         self.hide_timings = hide_timings
         self.session = Session.from_map(map_dir)
+        #: every error shown, oldest first (the notifications themselves expire)
+        self.error_log: list[str] = []
 
     # -- errors ----------------------------------------------------------------------------------
     def report_error(self, exc: BaseException) -> None:
         """Show an error as the CLI would print it; the app stays usable."""
-        if isinstance(exc, SbplanError):
-            self.notify(str(exc), title="sbplan: error", severity="error", timeout=10)
+        if isinstance(exc, CameraMotionError):
+            message = f"{exc}\nIn the app: re-anchor the calibration on this image (a, screen 2) " \
+                      f"when the camera moved a little, or calibrate again on the empty floor (screen 1)."
+            title = "sbplan: camera moved"
+        elif isinstance(exc, SbplanError):
+            message, title = str(exc), "sbplan: error"
         else:  # a bug: say what it was rather than dying
-            self.notify(f"{type(exc).__name__}: {exc}", title="sbplan: internal error", severity="error", timeout=15)
+            message, title = f"{type(exc).__name__}: {exc}", "sbplan: internal error"
+        self.error_log.append(message)
+        self.notify(message, title=title, severity="error", timeout=15)
 
     # -- actions ---------------------------------------------------------------------------------
     def action_watch(self) -> None:

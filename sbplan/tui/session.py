@@ -9,14 +9,15 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
 from .. import registry
 from ..contracts import StageChoices
 from ..detection import Calibration, Detection, Detector
-from ..detection.calibration import calibrate, load_calibration
+from ..detection.calibration import calibrate, load_calibration, update_calibration
+from ..detection.registration import CameraMotion
 from ..errors import CalibrationError, InputError, MapFormatError
 from ..imageio import load_image
 from ..planning import Route, detection_obstacles, plan, replan
@@ -24,6 +25,14 @@ from ..workspace import load_workspace
 
 #: Stage kinds the operator can swap on the calibration screen, in pipeline order.
 STAGE_KINDS = ("binarizer", "extractor", "approximator", "matcher", "mapper")
+
+#: What the planner avoids of each detected obstacle, with what the operator is told: the obstacle
+#: models of :mod:`sbplan.detection.obstacles`, by the names ``sbplan plan --obstacle-model`` takes.
+OBSTACLE_MODELS = {
+    "mar": "minimum-area rectangles",
+    "parts": "rectangles of the parts",
+    "outline": "outlines of the occupied cells",
+}
 
 
 def display_path(path: str | os.PathLike | None) -> str:
@@ -85,13 +94,19 @@ class Session:
     planner : str
     obstacle_model : str
         What stands for each detected obstacle when planning: ``mar``, ``parts`` (the default) or
-        ``outline`` (:mod:`sbplan.detection.obstacles`), the names the CLI's ``--obstacle-model`` takes.
+        ``outline`` (:mod:`sbplan.detection.obstacles`), the names the CLI's ``--obstacle-model`` takes;
+        a key of :data:`OBSTACLE_MODELS`.
     route, old_route : Route or None
         The current route and, after a replan, the one it replaced.
+    route_invalid : str or None
+        Why the current route can no longer be driven (a new obstacle blocks it and replanning
+        failed); None while it is valid.
     dynamic : list of ndarray (4, 2)
         Obstacles reported after the detection (placed by the operator or from a newer image).
     robot_fraction : float
         Where the robot is along the route, as a fraction of its length.
+    calibration_path : Path or None
+        The file the calibration was loaded from or last saved to.
     """
 
     map_dir: Path | None = None
@@ -107,8 +122,11 @@ class Session:
     obstacle_model: str = "parts"
     route: Route | None = None
     old_route: Route | None = None
+    route_invalid: str | None = None
     dynamic: list[np.ndarray] = field(default_factory=list)
     robot_fraction: float = 0.3
+    calibration_path: Path | None = None
+    _detector: Detector | None = field(default=None, repr=False)
 
     @classmethod
     def from_map(cls, map_dir: str | os.PathLike | None) -> "Session":
@@ -160,12 +178,13 @@ class Session:
         self.reference_path, self.reference = p, image
         return image
 
-    def calibrate(self, stages: StageChoices) -> Calibration:
-        """Calibrate on the loaded reference with the chosen stages (kind -> name)."""
+    def calibrate(self, stages: StageChoices, progress: Callable[[str, float], None] | None = None) -> Calibration:
+        """Calibrate on the loaded reference with the chosen stages (kind -> name);
+        ``progress(stage, fraction)`` as for :func:`sbplan.detection.calibration.calibrate`."""
         if self.reference is None:
             raise InputError("reference: open a reference image first")
-        cal = calibrate(self.reference, workspace=self.workspace(), **stages)
-        self.calibration = cal
+        cal = calibrate(self.reference, workspace=self.workspace(), progress=progress, **stages)
+        self.calibration, self.calibration_path = cal, None
         ws = cal.workspace
         self.start = self.start or ((ws.start_m[0], ws.start_m[1]) if ws.start_m else None)
         self.goal = self.goal or ((ws.goal_m[0], ws.goal_m[1]) if ws.goal_m else None)
@@ -173,7 +192,30 @@ class Session:
 
     def load_calibration(self, path: str | os.PathLike) -> Calibration:
         self.calibration = cal = load_calibration(path)
+        self.calibration_path = Path(path)
         return cal
+
+    def save_calibration(self, path: str | os.PathLike) -> Path:
+        """Write the calibration to ``path`` (atomically); it becomes the session's calibration file."""
+        written = self.require_calibration().save(path)
+        self.calibration_path = Path(written)
+        return self.calibration_path
+
+    def reanchor(self, frame: np.ndarray | None = None) -> tuple[Calibration, CameraMotion]:
+        """The calibration moved to the camera's present pose, measured on ``frame`` (default: the
+        current scene): ``(calibration, CameraMotion)``. Nothing changes here; see :meth:`adopt`."""
+        cal = self.require_calibration()
+        frame = self.scene if frame is None else frame
+        if frame is None:
+            raise InputError("re-anchor: open a current camera image first (screen 2)")
+        return update_calibration(cal, frame)
+
+    def adopt(self, calibration: Calibration) -> None:
+        """Use ``calibration`` from now on: what depended on the old one is dropped."""
+        self.calibration = calibration
+        self.detection = self.route = self.old_route = None
+        self.route_invalid = None
+        self.dynamic = []
 
     def load_scene(self, path: str | os.PathLike) -> np.ndarray:
         image = load_image(path)
@@ -186,12 +228,17 @@ class Session:
         return self.calibration
 
     def detect(self, image: np.ndarray | None = None) -> Detection:
-        """Detect on ``image`` (default: the loaded scene) with the calibrated stages."""
+        """Detect on ``image`` (default: the loaded scene) with the calibrated stages.
+
+        One :class:`~sbplan.detection.Detector` per calibration: it keeps the camera's last pose,
+        which starts the next frame's registration."""
         cal = self.require_calibration()
         image = self.scene if image is None else image
         if image is None:
             raise InputError("scene: open a scene image first")
-        return Detector(cal)(image)
+        if self._detector is None or self._detector.calibration is not cal:
+            self._detector = Detector(cal)
+        return self._detector(image)
 
     def obstacles_m(self) -> list[np.ndarray]:
         """The detection's obstacles in metres under the obstacle model, (M, 2) ``(x, y)`` each (what
@@ -208,12 +255,14 @@ class Session:
         _, zones = planner_view(self.detection, self.obstacle_model)
         return [np.asarray(z.exterior.coords) for z in zones]
 
-    def plan(self) -> Route:
-        """Plan from start to goal around the detected obstacles and the dynamic ones."""
+    def plan(self, start: Any = None) -> Route:
+        """Plan from ``start`` (default: the session's start) to the goal around the detected
+        obstacles and the dynamic ones."""
         cal = self.require_calibration()
-        if self.start is None or self.goal is None:
+        start = self.start if start is None else start
+        if start is None or self.goal is None:
             raise InputError("start/goal: set both (type x, y in metres or move the cursor and press s / g)")
-        return plan(self.obstacles_m() + list(self.dynamic), self.start, self.goal,
+        return plan(self.obstacles_m() + list(self.dynamic), start, self.goal,
                     robot_radius=cal.workspace.robot_radius_m, planner=self.planner, bounds=cal.world_bounds())
 
     def robot_position(self) -> np.ndarray | None:
@@ -233,3 +282,13 @@ class Session:
         known = set(self.detection.occupied_cells) if self.detection is not None else set()
         return [np.asarray(p) for ob in detection.obstacles if set(map(tuple, ob.cells)) - known
                 for p in ob.polygons_m(self.obstacle_model)]
+
+    def not_yet_dynamic(self, obstacles: list[np.ndarray]) -> list[np.ndarray]:
+        """Those of ``obstacles`` that are not already dynamic obstacles (nor repeated among
+        themselves): the same obstacle reported twice is one obstacle."""
+        kept: list[np.ndarray] = []
+        for ob in obstacles:
+            ob = np.asarray(ob, float)
+            if not any(o.shape == ob.shape and np.allclose(o, ob, atol=1e-9) for o in [*self.dynamic, *kept]):
+                kept.append(ob)
+        return kept

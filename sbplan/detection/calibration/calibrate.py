@@ -12,7 +12,7 @@ from __future__ import annotations
 import logging
 import os
 from dataclasses import replace
-from typing import Any, Unpack, cast
+from typing import Any, Callable, Unpack, cast
 
 import cv2
 import numpy as np
@@ -106,7 +106,8 @@ def calibrate(reference: ImageInput, *, symbol: ImageInput | None = None,
               binarizer: str | Binarizer | None = None, extractor: str | ContourExtractor | None = None,
               approximator: str | ContourApproximator | None = None, matcher: str | DescriptorMatcher | None = None,
               mapper: str | OccupancyMapper | None = None,
-              footprint: str | FootprintRefiner | None = None) -> Calibration:
+              footprint: str | FootprintRefiner | None = None,
+              progress: Callable[[str, float], None] | None = None) -> Calibration:
     """Calibrate on an image of the empty floor.
 
     Parameters
@@ -123,11 +124,18 @@ def calibrate(reference: ImageInput, *, symbol: ImageInput | None = None,
     binarizer, extractor, approximator, matcher, mapper, footprint : str or Stage, optional
         Stage names (or instances); defaults in :data:`DEFAULT_STAGES`.
 
+    progress : callable(stage, fraction), optional
+        Called between the steps with what comes next (``str``) and the share of the work done
+        (``float``, 0 to 1). An exception it raises (e.g. :class:`~sbplan.errors.Cancelled`)
+        stops the calibration there: the terminal app cancels this way.
+
     Raises
     ------
     CalibrationError
         No symbols, an irregular grid, or no shape that repeats.
     """
+    step = progress if progress is not None else _no_progress
+    step("reading the reference", 0.0)
     gray = as_gray(load_image(reference) if isinstance(reference, (str, os.PathLike)) else reference,
                    name="reference")
     # calibration's memory grows with the pixels (about 60 bytes each): refuse before, not during
@@ -149,10 +157,12 @@ def calibrate(reference: ImageInput, *, symbol: ImageInput | None = None,
     points_range = (12, max(16, (h + w) // 2))
     matcher_stage = cast(DescriptorMatcher, chosen["matcher"])  # the registry made it for the kind "matcher"
     extractor_stage, approximator_stage = chosen["extractor"], chosen["approximator"]
+    step("extracting contours", 0.02)
     shapes = extract_shapes(gray, binarizer=chosen["binarizer"], points_range=points_range,
                             extractor=extractor_stage, approximator=approximator_stage, matcher=matcher_stage)
     given = None if symbol is None else _symbol_descriptor_from_image(
         symbol, extractor=chosen["extractor"], approximator=chosen["approximator"], matcher=chosen["matcher"])
+    step("finding the symbol", 0.1)
     members = _symbol_members(shapes, chosen["matcher"], ref=given)
     # Fit the binarizer to the symbol size found and run again: a window of a few symbol sizes
     # follows the light without swallowing the symbol itself.
@@ -166,12 +176,14 @@ def calibrate(reference: ImageInput, *, symbol: ImageInput | None = None,
     fit = getattr(chosen["binarizer"], "with_symbol_size", None)
     refit = fit(size * SYMBOL_WINDOW / work.factor) if fit is not None else chosen["binarizer"]
     if refit != chosen["binarizer"] or not work.identity:
+        step("extracting contours at the symbol's size", 0.15)
         chosen["binarizer"] = refit
         shapes = extract_shapes(gray, binarizer=refit, points_range=points_range, work=work_arg,
                                 extractor=extractor_stage, approximator=approximator_stage, matcher=matcher_stage)
         members = _symbol_members(shapes, chosen["matcher"], ref=given)
     reference_descriptor = np.median(shapes.descriptors[members], axis=0)
     dist = distances_between(matcher_stage, shapes.descriptors, reference_descriptor[None, :])[:, 0]
+    step("fitting the grid", 0.25)
     grid = fit_grid(shapes.centres[members])
     # What a symbol looks like in later images is not what it looks like in this one: measure the
     # symbols again in degraded copies of the reference (defocus, dimmer light, sensor noise).
@@ -179,19 +191,22 @@ def calibrate(reference: ImageInput, *, symbol: ImageInput | None = None,
     cell_area = np.empty((grid.rows, grid.cols))
     cell_area[cells[:, 0], cells[:, 1]] = shapes.areas[members]
     symbol_polygons = [shapes.polygons[i] for i in members[np.argsort(cells[:, 0] * grid.cols + cells[:, 1])]]
+    step("measuring the symbols' outlines", 0.3)
     distance_map = signed_distance_map(symbol_polygons, gray.shape)
     degraded, deviations, degraded_polygons, degraded_cells, shifts = _degraded_symbols(
         gray, grid, reference_descriptor, cell_area, distance_map,
         binarizer=chosen["binarizer"], points_range=points_range, work=work_arg,
-        extractor=extractor_stage, approximator=approximator_stage, matcher=matcher_stage)
+        extractor=extractor_stage, approximator=approximator_stage, matcher=matcher_stage, progress=step)
     # An obstacle that clips a symbol moves part of its outline by more than light and focus
     # move it; the tolerance sits outside what the degraded copies showed, and at least 1 px.
     outline_tolerance = float(max(1.25 * np.max(deviations), 1.0)) if len(deviations) else 3.0
     # ... and the other way round: how far defocus and light pull each reference point in
+    step("measuring how light and focus move the outlines", 0.65)
     ref_points, _ = reference_samples(symbol_polygons)
     inner = inner_deviations(ref_points[degraded_cells], degraded_polygons, shifts)
     inner_tol = (inner_tolerance(inner, degraded_cells, grid.rows * grid.cols) if len(degraded_cells)
                  else np.full((grid.rows * grid.cols, ref_points.shape[1]), outline_tolerance))
+    step("deriving the match threshold", 0.9)
     threshold, margin = match_threshold(chosen["matcher"], reference_descriptor,
                                         np.concatenate([dist[members], degraded]), np.delete(dist, members),
                                         area=float(np.median(shapes.areas[members])))
@@ -202,6 +217,7 @@ def calibrate(reference: ImageInput, *, symbol: ImageInput | None = None,
     sample = rng.choice(others, size=min(len(others), 200), replace=False) if len(others) else others
     keep_degraded = rng.choice(len(degraded_polygons), size=min(len(degraded_polygons), 300), replace=False)
     n_points = shapes.points[symbol_idx]
+    step("measuring edges and registration points", 0.93)
     stats = {
         "contours": shapes.n_contours,
         "after_length_filter": len(shapes.polygons),
@@ -214,7 +230,7 @@ def calibrate(reference: ImageInput, *, symbol: ImageInput | None = None,
              margin, ", ".join(f"{k} {v.name}" for k, v in chosen.items()),
              extra={"data": {"grid": [grid.rows, grid.cols], "threshold": threshold, "margin": margin,
                              "stages": {k: v.name for k, v in chosen.items()}}})
-    return Calibration(
+    calibration = Calibration(
         image_shape=(h, w),
         stages={k: _stage_spec(v) for k, v in chosen.items()},
         grid=grid,
@@ -235,6 +251,12 @@ def calibrate(reference: ImageInput, *, symbol: ImageInput | None = None,
         workspace=workspace,
         stats=stats,
     )
+    step("done", 1.0)
+    return calibration
+
+
+def _no_progress(stage: str, fraction: float) -> None:
+    pass
 
 
 def _registration_centres(gray: np.ndarray, symbol_polygons: list[np.ndarray], grid: Grid,
@@ -253,7 +275,8 @@ def _registration_centres(gray: np.ndarray, symbol_polygons: list[np.ndarray], g
 
 def _degraded_symbols(gray: np.ndarray, grid: Grid, descriptor: np.ndarray, cell_area: np.ndarray,
                       distance_map: np.ndarray, *,
-                      binarizer, extractor, approximator, matcher, points_range, work=None) -> tuple:
+                      binarizer, extractor, approximator, matcher, points_range, work=None,
+                      progress: Callable[[str, float], None] = _no_progress) -> tuple:
     """The reference's symbols in defocused, dimmed, dark-and-grainy and noisy copies of it.
 
     Returns their descriptor distances to ``descriptor``, their outlines' deviations from the
@@ -274,7 +297,8 @@ def _degraded_symbols(gray: np.ndarray, grid: Grid, descriptor: np.ndarray, cell
     polygons: list[np.ndarray] = []
     cells_kept: list[np.ndarray] = []
     shifts: list[np.ndarray] = []
-    for image in copies:
+    for k, (what, image) in enumerate(zip(("defocused", "dimmed", "dark and grainy", "noisy"), copies)):
+        progress(f"the symbols in a {what} copy", 0.35 + 0.075 * k)
         shapes = extract_shapes(image, binarizer=binarizer, extractor=extractor, approximator=approximator,
                                 matcher=matcher, points_range=points_range, work=work)
         if not shapes.polygons:

@@ -7,7 +7,7 @@ from typing import cast
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical, VerticalScroll
-from textual.widgets import Button, Footer, Header, Label, Select, Static
+from textual.widgets import Button, Header, Label, Select, Static
 
 from ...contracts import StageChoices
 from ...detection.calibration import DEFAULT_STAGES
@@ -15,6 +15,7 @@ from ...errors import CalibrationError, InputError
 from ..render import calibration_overlay
 from ..session import STAGE_KINDS, display_path, stage_names
 from ..widgets.busy import Busy
+from ..widgets.keys import KeyFooter
 from ..widgets.path_input import PathInput
 from ..widgets.picture import Picture
 from .base import JobScreen
@@ -31,11 +32,12 @@ class CalibrationScreen(JobScreen):
         Binding("o", "open_reference", "Open"),
         Binding("c", "calibrate", "Calibrate"),
         Binding("ctrl+s", "save", "Save"),
+        Binding("f", "fullscreen", "Zoom"),
     ]
+    OUTPUT_FIELDS = {"cal-path": "calibration.json"}
 
     def compose(self) -> ComposeResult:
         s = self.session
-
         self._names = names = stage_names()
         yield Header()
         with Horizontal(classes="body"):
@@ -56,12 +58,13 @@ class CalibrationScreen(JobScreen):
                 yield Button("Calibrate (c)", id="calibrate", variant="primary", compact=True)
                 yield Static("not calibrated", id="cal-stats")
                 yield Label("Save calibration to", classes="heading")
-                yield PathInput(str(s.out_dir / "calibration.json"), suffixes=(".json",), id="cal-path")
+                yield PathInput("", suffixes=(".json",), id="cal-path")
                 yield Button("Save (ctrl+s)", id="save", compact=True)
         yield Busy()
-        yield Footer()
+        yield KeyFooter()
 
     def on_mount(self) -> None:
+        self.follow_map()
         if self.session.reference is not None:
             self._show()
         elif self.session.reference_path is not None:
@@ -79,17 +82,25 @@ class CalibrationScreen(JobScreen):
             self.app.report_error(InputError("reference: type the path of the empty-floor image"))
             return
         if path.lower().endswith(".json"):
-            self.start_job(f"loading calibration {path}", lambda: self.session.load_calibration(path),
-                           lambda cal: self._calibrated(cal, loaded=path))
+            def load(progress):
+                progress("reading the calibration file", None)
+                return self.session.load_calibration(path)
+
+            self.start_job(f"loading calibration {path}", load, lambda cal: self._calibrated(cal, loaded=path))
             return
+
+        def read(progress):
+            progress("reading the image", None)
+            return self.session.load_reference(path)
 
         def done(_image) -> None:
             self.session.calibration = None
+            self.follow_map()  # a map folder starts that map's session, with its own outputs
             self._show()
             if calibrate_after:
                 self.action_calibrate()
 
-        self.start_job(f"opening {path}", lambda: self.session.load_reference(path), done)
+        self.start_job(f"opening {path}", read, done)
 
     def chosen_stages(self) -> StageChoices:
         out = {}
@@ -102,48 +113,67 @@ class CalibrationScreen(JobScreen):
     def action_calibrate(self) -> None:
         stages = self.chosen_stages()
         label = "calibrating with " + ", ".join(str(name) for name in stages.values())
-        self.start_job(label, lambda: self.session.calibrate(stages), self._calibrated)
+        self.start_job(label, lambda progress: self.session.calibrate(stages, progress), self._calibrated)
 
     def _calibrated(self, cal, loaded: str | None = None) -> None:
-        self.session.detection = None
-        self.session.route = self.session.old_route = None
+        self.session.adopt(cal)
         for kind in STAGE_KINDS:
             name = cal.stages.get(kind, {}).get("name")
             select = self.query_one(f"#stage-{kind}", Select)
             if name is not None and name in self._names[kind]:
                 select.value = name
         self._show()
-        self.notify(f"calibration {'loaded' if loaded else 'done'}: grid {cal.grid.cols} x {cal.grid.rows}, "
-                    f"threshold {cal.threshold:.4f}", title="calibration")
+        self.notify(f"calibration {'loaded' if loaded else 'done'}: grid {cal.grid.cols} columns × "
+                    f"{cal.grid.rows} rows, threshold {cal.threshold:.4f}", title="calibration")
+        if self.app.screen is not self and isinstance(self.app.screen, JobScreen):
+            self.app.screen.session_changed()  # the operator went on to screen 2 or 3 meanwhile
 
     def action_save(self) -> None:
-        cal = self.session.calibration
-        if cal is None:
+        """Save the calibration to the path at the right; an existing file is overwritten only
+        after the operator confirmed."""
+        if self.session.calibration is None:
             self.app.report_error(CalibrationError("calibration: nothing to save; calibrate first (c)"))
             return
-        path = self.query_one("#cal-path", PathInput).value.strip() or str(self.session.out_dir / "calibration.json")
-        self.start_job(f"saving {path}", lambda: cal.save(path),
-                       lambda p: self.notify(f"saved {display_path(p)}", title="calibration"))
+        path = self.query_one("#cal-path", PathInput).value.strip() or self.output_default("cal-path")
+
+        def save() -> None:
+            def write(progress):
+                progress("writing", None)
+                return self.session.save_calibration(path)
+
+            self.start_job(f"saving {path}", write,
+                           lambda p: self.notify(f"saved {display_path(p)}", title="calibration"))
+
+        self.confirm_overwrite([path], save)
+
+    def action_fullscreen(self) -> None:
+        s = self.session
+        self.show_fullscreen(self._picture(), title=f"reference {display_path(s.reference_path)}")
 
     # -- view ------------------------------------------------------------------------------------
+    def _picture(self):
+        """The reference with the fitted grid drawn over it, or the bare reference, or None."""
+        s = self.session
+        cal = s.calibration
+        if s.reference is not None and cal is not None and tuple(cal.image_shape) == s.reference.shape[:2]:
+            return calibration_overlay(s.reference, cal)
+        return s.reference
+
     def _show(self) -> None:
         s = self.session
         picture = self.query_one("#cal-picture", Picture)
         stats = self.query_one("#cal-stats", Static)
         cal = s.calibration
-        if s.reference is not None and cal is not None and tuple(cal.image_shape) == s.reference.shape[:2]:
-            picture.show(calibration_overlay(s.reference, cal))
-        else:
-            picture.show(s.reference)
+        picture.show(self._picture())
         if cal is None:
             stats.update("not calibrated" if s.reference is None else
-                         f"{s.reference.shape[1]} x {s.reference.shape[0]} px; not calibrated: press c")
+                         f"{s.reference.shape[1]} × {s.reference.shape[0]} px; not calibrated: press c")
             return
         st = cal.stats
         other = st.get("other_distance_min")
         lines = [
-            f"grid        {cal.grid.cols} cols x {cal.grid.rows} rows",
-            f"pitch       {cal.grid.pitch_px[0]:.1f} x {cal.grid.pitch_px[1]:.1f} px",
+            f"grid        {cal.grid.cols} columns × {cal.grid.rows} rows",
+            f"pitch       {cal.grid.pitch_px[0]:.1f} × {cal.grid.pitch_px[1]:.1f} px",
             f"symbols     {st.get('symbols', cal.symbols_expected)} of {st.get('after_length_filter', '?')} contours",
             f"rejected    {len(st.get('rejected_centres_px', []))} contours",
             f"threshold   {cal.threshold:.4f}",
@@ -151,8 +181,10 @@ class CalibrationScreen(JobScreen):
             f"max symbol d {st.get('symbol_distance_max', float('nan')):.4f}",
             f"min other d  {other:.4f}" if other is not None else "min other d  -",
             f"tolerance   {cal.grid.tolerance_px:.1f} px",
-            f"metres      {cal.workspace.pitch_m[0]:g} x {cal.workspace.pitch_m[1]:g} per cell",
+            f"metres      {cal.workspace.pitch_m[0]:g} × {cal.workspace.pitch_m[1]:g} per cell",
         ]
+        if s.calibration_path is not None:
+            lines.append(f"file        {display_path(s.calibration_path)}")
         stats.update("\n".join(lines))
 
     # -- events ----------------------------------------------------------------------------------

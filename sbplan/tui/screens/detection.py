@@ -1,29 +1,78 @@
-"""Screen 2: detect the occupied cells and obstacles in the current image; export them."""
+"""Screen 2: detect the occupied cells and obstacles in the current image; export them; follow
+the camera's movement since calibration and re-anchor the calibration to it."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+from rich.markup import escape
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import Horizontal, Vertical, VerticalScroll
-from textual.widgets import Button, DataTable, Footer, Header, Label, Static
+from textual.widgets import Button, DataTable, Header, Label, Static
 
 from ...detection import exports
 from ...detection.exports import overlay_image
-from ...errors import InputError
+from ...detection.obstacles import axis_angle
+from ...errors import CameraMotionError, InputError
 from ..session import display_path
 from ..widgets.busy import Busy
+from ..widgets.keys import KeyFooter
 from ..widgets.path_input import PathInput
 from ..widgets.picture import Picture
+from ..widgets.tables import fill_table
 from .base import JobScreen
 
-LEGEND = ("[#e62828]▆ occupied cells, outlines[/]  [#ffdc00]▢ MARs[/]  [#3cc83c]● symbols found[/]  "
-          "[#00c8e6]× symbol shapes off their cell[/]")
+LEGEND = ("[#e62828]▆ occupied cells, outlines[/]  [#ffdc00]▢ obstacle model[/]  [#ff8c00]▢ clearance[/]  "
+          "[#3cc83c]● symbols found[/]  [#00c8e6]× symbol shapes off their cell[/]")
+#: What :meth:`DetectionScreen.action_export` writes into the export folder.
+EXPORTS = ("overlay.png", "occupancy.png", "obstacles.geojson", "nav2/map.yaml", "nav2/map.pgm")
+
+#: the columns of the obstacle and timing tables
+OBSTACLE_COLUMNS = ("id", "cells", "size m", "angle °", "centre m")
+TIMING_COLUMNS = ("stage", "ms")
+
+
+def table_rows(det, *, hide_timings: bool = False) -> dict[str, list[tuple[str, ...]]]:
+    """The rows of the obstacle and timing tables for a detection (none for None):
+    ``{"obstacles": [...], "timings": [...]}``, cells as text, in :data:`OBSTACLE_COLUMNS` and
+    :data:`TIMING_COLUMNS` order."""
+    rows: dict[str, list[tuple[str, ...]]] = {"obstacles": [], "timings": []}
+    if det is None:
+        return rows
+    for ob in det.obstacles:
+        j = ob.to_json()
+        size = j.get("size_m")
+        rows["obstacles"].append((str(ob.id), str(len(ob.cells)),
+                                  f"{size[0]:.2f}×{size[1]:.2f}" if size else "-",
+                                  # as sbplan detect prints it: a vertical side is 90, never -90
+                                  f"{axis_angle(j['angle_m_deg'], 1):.1f}" if "angle_m_deg" in j else "-",
+                                  f"{j['centre_m'][0]:.2f},{j['centre_m'][1]:.2f}" if "centre_m" in j else "-"))
+    for stage, ms in det.timings_ms.items():
+        rows["timings"].append((stage, "··· " if hide_timings else f"{ms:.1f}"))
+    return rows
+
+
+def camera_lines(motion) -> list[str]:
+    """The camera's movement since calibration, for the summary (rich markup); the warning in
+    the warning colour."""
+    if motion is None or motion.model == "none":
+        return ["camera      movement not estimated"]
+    lines = ["camera since calibration",
+             f"  shift     {motion.shift_px[0]:+.2f}, {motion.shift_px[1]:+.2f} px",
+             f"  rotation  {motion.rotation_deg:+.3f}°",
+             f"  scale     {motion.scale:.4f}",
+             f"  residual  {motion.residual_px:.2f} px, {motion.symbols_used} symbols ({motion.model})"]
+    if motion.warning:
+        lines.append(f"[b $warning]⚠ {escape(motion.warning)}[/]")
+        lines.append("[$warning]  re-anchor the calibration: a[/]")
+    return lines
 
 
 class DetectionScreen(JobScreen):
-    """The current image with occupied cells, obstacles and MARs; obstacle and timing tables."""
+    """The current image with occupied cells, obstacles and MARs; the camera's movement;
+    obstacle and timing tables."""
 
     TITLE = "sbplan"
     SUB_TITLE = "2 detection"
@@ -31,11 +80,16 @@ class DetectionScreen(JobScreen):
         Binding("d", "detect", "Detect"),
         Binding("r", "detect", "Refresh", show=False),
         Binding("e", "export", "Export"),
+        Binding("a", "reanchor", "Re-anchor"),
+        Binding("f", "fullscreen", "Zoom"),
     ]
+    OUTPUT_FIELDS = {"export-dir": ""}
 
     def compose(self) -> ComposeResult:
         s = self.session
         self._scene_seen = s.scene_path
+        # (scene path, calibration) whose detection failed: not detected again on its own
+        self._failed_on: tuple[str, int] | None = None
         yield Header()
         with Horizontal(classes="body"):
             with Vertical(classes="main"):
@@ -47,23 +101,23 @@ class DetectionScreen(JobScreen):
                                 placeholder="path of the current camera image", id="scene-path")
                 yield Button("Open & detect (d)", id="detect", variant="primary", compact=True)
                 yield Static("no detection yet", id="det-summary")
+                yield Button("Re-anchor calibration (a)", id="reanchor", compact=True)
                 yield Label("Obstacles", classes="heading")
                 yield DataTable(id="obstacles", cursor_type="row", zebra_stripes=True)
                 yield Label("Timings", classes="heading")
                 yield DataTable(id="timings", cursor_type="none")
                 yield Label("Export to folder", classes="heading")
-                yield PathInput(str(s.out_dir), id="export-dir")
+                yield PathInput("", id="export-dir")
                 yield Button("Export overlay, GeoJSON, nav2 (e)", id="export", compact=True)
         yield Busy()
-        yield Footer()
+        yield KeyFooter()
 
     def on_mount(self) -> None:
-        self.query_one("#obstacles", DataTable).add_columns("id", "cells", "size m", "angle °", "centre m")
-        self.query_one("#timings", DataTable).add_columns("stage", "ms")
         self.on_screen_resume()
 
     def on_screen_resume(self) -> None:
         s = self.session
+        self.follow_map()
         if s.scene_path != self._scene_seen:  # another map was opened on screen 1
             self._scene_seen = s.scene_path
             self.query_one("#scene-path", PathInput).value = display_path(s.scene_path)
@@ -71,7 +125,7 @@ class DetectionScreen(JobScreen):
             s.detection = None  # calibrated again since: the old cells no longer mean anything
         self._show()
         if self.app.auto and s.detection is None and s.calibration is not None and s.scene_path is not None \
-                and not self.busy:
+                and not self.busy and self._failed_on != (str(s.scene_path), id(s.calibration)):
             self.action_detect()
 
     # -- actions ---------------------------------------------------------------------------------
@@ -82,12 +136,19 @@ class DetectionScreen(JobScreen):
             return
         s = self.session
 
-        def job():
+        def job(progress):
             s.require_calibration()
+            progress("reading the image", 0.0)
             image = s.load_scene(path)
+            progress("registering and detecting", 0.5)
             return self.run_detection(image)
 
-        self.start_job(f"detecting on {path}", job, self._detected)
+        def failed(exc: Exception) -> None:
+            self._failed_on = (path, id(s.calibration))
+            s.detection = None
+            self._show(error=exc)
+
+        self.start_job(f"detecting on {path}", job, self._detected, failed=failed)
 
     def run_detection(self, image):
         """The blocking step (worker thread): detection on ``image`` with the session's calibration."""
@@ -97,8 +158,13 @@ class DetectionScreen(JobScreen):
         s = self.session
         s.detection = detection
         s.route = s.old_route = None
+        s.route_invalid = None
         s.dynamic = []
+        self._failed_on = None
         self._show()
+        if detection.camera is not None and detection.camera.warning:
+            self.notify(f"{detection.camera.warning}\nRe-anchor the calibration to the camera's new pose: a",
+                        title="camera moved", severity="warning", timeout=10)
 
     def action_export(self) -> None:
         s = self.session
@@ -108,50 +174,111 @@ class DetectionScreen(JobScreen):
         folder = Path(self.query_one("#export-dir", PathInput).value.strip() or s.out_dir)
         det, image = s.detection, s.scene
 
-        def job():
+        def job(progress):
             model = s.obstacle_model  # what the planner gets, in every file
-            exports.write_overlay(folder / "overlay.png", image, det, model)
-            exports.write_occupancy(folder / "occupancy.png", det)
-            exports.write_geojson(folder / "obstacles.geojson", det, model)
-            exports.write_nav2(folder / "nav2", det, model=model)
+            writers = (("overlay.png", lambda path: exports.write_overlay(path, image, det, model)),
+                       ("occupancy.png", lambda path: exports.write_occupancy(path, det)),
+                       ("obstacles.geojson", lambda path: exports.write_geojson(path, det, model)),
+                       ("nav2", lambda path: exports.write_nav2(path, det, model=model)))
+            for k, (name, write) in enumerate(writers):
+                progress(f"writing {name}", k / len(writers))
+                write(folder / name)
             return folder
 
-        self.start_job(f"exporting to {folder}", job,
-                       lambda f: self.notify(f"wrote {display_path(f)}/: overlay.png, occupancy.png, "
-                                             "obstacles.geojson, nav2/", title="export"))
+        def export() -> None:
+            self.start_job(f"exporting to {folder}", job,
+                           lambda f: self.notify(f"wrote {display_path(f)}/: overlay.png, occupancy.png, "
+                                                 "obstacles.geojson, nav2/", title="export"))
+
+        self.confirm_overwrite([folder / name for name in EXPORTS], export)
+
+    def action_reanchor(self) -> None:
+        """Move the calibration to the camera's pose in the current image (``sbplan calibrate
+        --update``): measured first, then written over the calibration file once confirmed."""
+        s = self.session
+        if s.calibration is None or s.scene is None:
+            self.app.report_error(InputError("re-anchor: calibrate (screen 1) and open a current image (d) first"))
+            return
+        target = s.calibration_path or s.out_dir / "calibration.json"
+
+        def measure(progress):
+            progress("registering the image to the calibration", None)
+            return s.reanchor()
+
+        def measured(result) -> None:
+            cal, motion = result
+            question = (f"Re-anchor the calibration to the camera's present pose?\n{motion.summary()}\n\n"
+                        f"This {'overwrites' if Path(target).exists() else 'writes'} {display_path(target)}; "
+                        f"detection starts again from the new pose.")
+
+            def write(progress):
+                progress(f"writing {display_path(target)}", None)
+                cal.save(target)
+                s.calibration_path = Path(target)
+                return cal
+
+            def written(new) -> None:
+                s.adopt(new)
+                self.notify(f"calibration re-anchored and saved to {display_path(target)}", title="re-anchor")
+                self.action_detect()
+
+            self.confirm_overwrite([target], lambda: self.start_job("re-anchoring", write, written),
+                                   question=question)
+
+        self.start_job("measuring the camera's movement", measure, measured)
+
+    def action_fullscreen(self) -> None:
+        """The overlay over the whole terminal, obstacle numbers as text."""
+        det = self.session.detection
+        if det is None:
+            self.show_fullscreen(self.session.scene, title=display_path(self.session.scene_path))
+            return
+        cam = det.camera
+        labels = []
+        for ob in det.obstacles:
+            centre = np.asarray(ob.centre_px, dtype=float)
+            x, y = cam.to_frame(centre) if cam is not None and cam.moved else centre
+            labels.append((x, y, str(ob.id)))
+        self.show_fullscreen(self._overlay(), labels, title=f"{display_path(self.session.scene_path)}: "
+                             f"{len(det.occupied_cells)} occupied cells, {len(det.obstacles)} obstacles")
 
     # -- view ------------------------------------------------------------------------------------
-    def _show(self) -> None:
+    def _overlay(self):
+        assert self.session.scene is not None  # the detection was made on it
+        # the summary at the right says what the caption would: the picture keeps every symbol visible
+        s = self.session
+        return overlay_image(s.scene, s.detection, s.obstacle_model, caption=False)
+
+    def _show(self, error: Exception | None = None) -> None:
         s = self.session
         det = s.detection
         picture = self.query_one("#det-picture", Picture)
         table = self.query_one("#obstacles", DataTable)
         timings = self.query_one("#timings", DataTable)
         summary = self.query_one("#det-summary", Static)
-        table.clear()
-        timings.clear()
+        rows = table_rows(det, hide_timings=self.app.hide_timings)
+        fill_table(table, OBSTACLE_COLUMNS, rows["obstacles"], keys=[row[0] for row in rows["obstacles"]])
+        fill_table(timings, TIMING_COLUMNS, rows["timings"])
+        self.query_one("#reanchor", Button).display = s.calibration is not None and s.scene is not None
         if det is None:
             picture.show(s.scene if s.calibration is not None else None,
                          "not calibrated: calibrate on screen 1 first" if s.calibration is None else None)
-            summary.update("not calibrated yet (screen 1)" if s.calibration is None else "no detection yet: press d")
+            if isinstance(error, CameraMotionError):
+                summary.update(f"[b $error]camera moved: no detection[/]\n{escape(str(error))}\n"
+                               "[$warning]re-anchor (a) if it moved a little, or calibrate again "
+                               "on the empty floor (screen 1)[/]")
+            elif error is not None:
+                summary.update(f"[b $error]no detection[/]\n{escape(str(error))}")
+            else:
+                summary.update("not calibrated yet (screen 1)" if s.calibration is None else "no detection yet: press d")
             return
-        assert s.scene is not None  # the detection was made on it
-        picture.show(overlay_image(s.scene, det, s.obstacle_model))
-        summary.update(
-            f"symbols     {det.symbols_found} of {det.symbols_expected} found\n"
-            f"occupied    {len(det.occupied_cells)} cells\n"
-            f"obstacles   {len(det.obstacles)}\n"
-            f"stages      {', '.join(det.stages.values())}")
-        for ob in det.obstacles:
-            j = ob.to_json()
-            size = j.get("size_m")
-            table.add_row(str(ob.id), str(len(ob.cells)),
-                          f"{size[0]:.2f}×{size[1]:.2f}" if size else "-",
-                          f"{round(j['angle_m_deg'], 1) + 0.0:.1f}" if "angle_m_deg" in j else "-",
-                          f"{j['centre_m'][0]:.2f},{j['centre_m'][1]:.2f}" if "centre_m" in j else "-",
-                          key=str(ob.id))
-        for stage, ms in det.timings_ms.items():
-            timings.add_row(stage, "··· " if self.app.hide_timings else f"{ms:.1f}")
+        picture.show(self._overlay())
+        summary.update("\n".join([
+            f"symbols     {det.symbols_found} of {det.symbols_expected} found",
+            f"occupied    {len(det.occupied_cells)} cells",
+            f"obstacles   {len(det.obstacles)}, drawn as {s.obstacle_model} (screen 3: m)",
+            *camera_lines(det.camera),
+            f"stages      {', '.join(det.stages.values())}"]))
 
     # -- events ----------------------------------------------------------------------------------
     def on_input_submitted(self, event: PathInput.Submitted) -> None:
@@ -166,3 +293,5 @@ class DetectionScreen(JobScreen):
             self.action_detect()
         elif event.button.id == "export":
             self.action_export()
+        elif event.button.id == "reanchor":
+            self.action_reanchor()

@@ -23,6 +23,7 @@ from ...live.overlay import live_overlay
 from ..session import display_path
 from ..widgets.path_input import PathInput
 from ..widgets.picture import Picture
+from ..widgets.tables import fill_table
 
 if TYPE_CHECKING:
     from textual import getters
@@ -36,6 +37,8 @@ LEGEND = "[#e62828]▆ occupied cells[/]  [#ffdc00]▢ obstacles (MARs) with ids
 REFRESH_S = 0.25
 #: Event lines kept in the log.
 LOG_LINES = 200
+#: the columns of the obstacle table
+WATCH_COLUMNS = ("id", "cells", "centre m")
 
 
 def default_source(map_dir: Path | None) -> str:
@@ -140,7 +143,7 @@ class WatchScreen(Screen):
         yield Footer()
 
     def on_mount(self) -> None:
-        self.query_one("#watch-obstacles", DataTable).add_columns("id", "cells", "centre m")
+        fill_table(self.query_one("#watch-obstacles", DataTable), WATCH_COLUMNS, [])
         self.set_interval(REFRESH_S, self._refresh)
 
     def on_unmount(self) -> None:
@@ -279,6 +282,4 @@ class WatchScreen(Screen):
                  "-" if ob.mar_m is None else f"{ob.mar_m.mean(axis=0)[0]:.2f},{ob.mar_m.mean(axis=0)[1]:.2f}")
                 for ob in state.obstacles]
         if [tuple(table.get_row_at(i)) for i in range(table.row_count)] != rows:
-            table.clear()
-            for row in rows:
-                table.add_row(*row)
+            fill_table(table, WATCH_COLUMNS, rows)

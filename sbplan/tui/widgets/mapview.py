@@ -13,13 +13,14 @@ from textual.widget import Widget
 from ..render import BrailleCanvas, MapFrame
 
 #: bottom first; the top layer with a dot in a cell gives the cell its colour
-LAYERS = ("grid", "obstacle", "old_route", "dynamic", "route", "marker", "cursor")
+LAYERS = ("grid", "obstacle", "old_route", "dynamic", "blocked_route", "route", "marker", "cursor")
 # explicit colours: the theme's ANSI red and magenta look alike, and dynamic obstacles must stand out
 STYLES = {
     "grid": Style(color="grey42"),
     "obstacle": Style(color="#e04040", bold=True),
     "old_route": Style(color="#ffb000"),
     "dynamic": Style(color="#b070ff", bold=True),
+    "blocked_route": Style(color="#ff4040", bold=True),
     "route": Style(color="#40e040", bold=True),
     "marker": Style(color="black", bgcolor="cyan", bold=True),
     "cursor": Style(color="black", bgcolor="white", bold=True),
@@ -59,13 +60,15 @@ class MapView(Widget, can_focus=True):
         self.cursor: np.ndarray | None = None
 
     # -- what to draw ----------------------------------------------------------------------------
-    def draw(self, *, bounds, pitch, obstacles=(), dynamic=(), route=None, old_route=None,
+    def draw(self, *, bounds, pitch, obstacles=(), dynamic=(), route=None, old_route=None, blocked_route=None,
              start=None, goal=None, robot=None, clearance=()) -> None:
-        """Set the map's content (all world metres, ``(x, y)``) and repaint. ``clearance``: rings
-        drawn as dotted lines around the obstacles (the planner's enlargement by the robot radius)."""
+        """Set the map's content (all world metres, ``(x, y)``) and repaint. ``blocked_route`` is
+        a route that can no longer be driven: drawn dotted in red instead of as the route.
+        ``clearance``: rings drawn as dotted lines around the obstacles (the planner's enlargement
+        by the robot radius)."""
         self.bounds, self.pitch = tuple(bounds), tuple(pitch)
         self.scene = dict(obstacles=list(obstacles), dynamic=list(dynamic), route=route, old_route=old_route,
-                          start=start, goal=goal, robot=robot, clearance=list(clearance))
+                          blocked_route=blocked_route, start=start, goal=goal, robot=robot, clearance=list(clearance))
         if self.cursor is None:
             xmin, ymin, xmax, ymax = self.bounds
             self.cursor = np.array([(xmin + xmax) / 2, (ymin + ymax) / 2])
@@ -96,6 +99,8 @@ class MapView(Widget, can_focus=True):
             canvas.fill("dynamic", poly)
         if sc.get("old_route") is not None:
             canvas.line("old_route", sc["old_route"], dotted=True)
+        if sc.get("blocked_route") is not None:
+            canvas.line("blocked_route", sc["blocked_route"], dotted=True)
         if sc.get("route") is not None:
             canvas.line("route", sc["route"])
         for key, ch in (("start", "S"), ("goal", "G"), ("robot", "R")):

@@ -48,4 +48,5 @@ class PathInput(Input):
     """An :class:`Input` for paths, with completion (accept with → or End)."""
 
     def __init__(self, value: str = "", *, suffixes: tuple[str, ...] = (), **kwargs) -> None:
+        kwargs.setdefault("compact", True)  # one row: the side panel must fit under the picture at 80 x 24
         super().__init__(value=value, suggester=PathSuggester(suffixes), **kwargs)
