@@ -253,3 +253,19 @@ def test_the_paper_example_gives_its_counts_with_the_camera_moved(dx, dy, rot):
             len(detection.obstacles)) == (48, 35, 13, 3)
     assert abs(detection.camera.shift_px[0] - dx) <= 0.2 and abs(detection.camera.shift_px[1] - dy) <= 0.2
     assert abs(detection.camera.rotation_deg - rot) <= 0.02
+
+
+def test_a_stream_logs_the_movement_warning_once_not_every_frame(calibration, caplog):
+    image, _ = _scene(motion=(4.0, -3.0, 0.3, 1.0))
+    detector = Detector(calibration)
+    with caplog.at_level("WARNING", logger="sbplan"):
+        for _ in range(3):
+            assert detector.find_cells(image).camera.warning  # every result still carries it
+    assert sum("camera moved since calibration" in r.getMessage() for r in caplog.records) == 1
+    # once the camera is back, a new movement is told again
+    still, _ = _scene()
+    detector.find_cells(still)
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="sbplan"):
+        detector.find_cells(image)
+    assert sum("camera moved since calibration" in r.getMessage() for r in caplog.records) == 1

@@ -51,6 +51,9 @@ SCRATCH_CELLS = 24
 #: (on the suite's worn floors scratched symbols broke at most 11 % of their points; 90 % of the
 #: occupied cells whose edge broke, more than 15 %).
 SCRATCH_BROKEN_SHARE = 0.25
+#: A Detector logs the camera-movement warning once while the movement lasts, and again after this
+#: many seconds.
+WARN_REPEAT_S = 60.0
 #: Symbols whose grey-level centres refine the registration (spread over the grid): 24 pin it to
 #: about 0.05 px on the renderer's scenes at half the cost of all 50.
 REGISTRATION_SYMBOLS = 24
@@ -125,6 +128,7 @@ class Detector:
         # (sbplan.detection.registration); the last estimate seeds the next frame's
         self.register = bool(register)
         self.motion: CameraMotion = CameraMotion.none()
+        self._warned_at: float | None = None  # time.monotonic() of the last movement warning logged
         # what the frames' grey-level centres are compared with, by flat cell number
         self._registration_centres = (cal.registration_centres_px if cal.registration_centres_px is not None
                                       else cal.grid.centres_px).reshape(-1, 2)
@@ -337,7 +341,14 @@ class Detector:
                 matched = np.concatenate([matched, self._cell_centres[whole]])
         lap("match")
         timings["total"] = (time.perf_counter() - t0) * 1e3
-        if motion.warning:
+        # once while the camera stays moved (and again every WARN_REPEAT_S): a stream's detector
+        # sees the same movement on every frame, and its log is not the place for 30 lines a second
+        # (each result still carries the movement and its warning)
+        now = time.monotonic()
+        if not motion.warning:
+            self._warned_at = None
+        elif self._warned_at is None or now - self._warned_at >= WARN_REPEAT_S:
+            self._warned_at = now
             log.warning(motion.warning, extra={"data": {"camera": motion.to_json()}})
         return CellDetection(~found, matched_count, matched, candidates, timings, gray.shape, motion,
                              symbols_rescued=rescued)
