@@ -584,22 +584,31 @@ def _scratch_like(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, level
             and float(np.percentile(around, 90)) <= ink + 2 * SCRATCH_INK_LEVEL * step)
 
 
+def _principal_axes(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The pixels of ``mask`` (H, W; at least two) about their principal axis: their centre
+    ``(x, y)``, the axis' unit direction, and each pixel's signed distance across it and along it."""
+    rows, cols = np.nonzero(mask)
+    pts = np.stack([cols, rows], axis=1).astype(np.float64)
+    centre = pts.mean(axis=0)
+    pts -= centre
+    _, eigvecs = np.linalg.eigh(pts.T @ pts / len(pts))
+    return centre, eigvecs[:, 1], pts @ eigvecs[:, 0], pts @ eigvecs[:, 1]
+
+
 def _straight_courses(mask: np.ndarray) -> np.ndarray:
-    """The straight lines through each piece of ``mask`` (H, W; 0/1 uint8) that lies along one
-    (:func:`_straight_length`), drawn across the whole mask one pixel wide. uint8 0/1."""
+    """The straight lines through each piece of ``mask`` (H, W; 0/1 uint8) whose pixels all lie
+    within :data:`SCRATCH_STRAIGHT_PX` of its principal axis, drawn across the whole mask one pixel
+    wide. uint8 0/1."""
     out = np.zeros_like(mask)
     n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
     reach = float(sum(mask.shape))
     for k in range(1, n):
         if stats[k, cv2.CC_STAT_AREA] < SCRATCH_SPECK_PX:
             continue
-        rows, cols = np.nonzero(labels == k)
-        pts = np.stack([cols, rows], axis=1).astype(np.float64)
-        centre = pts.mean(axis=0)
-        eigvals, eigvecs = np.linalg.eigh((pts - centre).T @ (pts - centre) / len(pts))
-        if np.abs((pts - centre) @ eigvecs[:, 0]).max() > SCRATCH_STRAIGHT_PX:
+        centre, direction, across, _ = _principal_axes(labels == k)
+        if np.abs(across).max() > SCRATCH_STRAIGHT_PX:
             continue
-        a, b = centre - reach * eigvecs[:, 1], centre + reach * eigvecs[:, 1]
+        a, b = centre - reach * direction, centre + reach * direction
         cv2.line(out, (int(round(a[0])), int(round(a[1]))), (int(round(b[0])), int(round(b[1]))), 1, 1)
     return out
 
@@ -607,17 +616,14 @@ def _straight_courses(mask: np.ndarray) -> np.ndarray:
 def _straight_length(mask: np.ndarray) -> float:
     """The length of the pixels of ``mask`` (H, W) along their principal axis when they lie within
     :data:`SCRATCH_STRAIGHT_PX` of one straight line, else 0."""
-    rows, cols = np.nonzero(mask)
-    if len(rows) < 2:
+    if np.count_nonzero(mask) < 2:
         return 0.0
-    pts = np.stack([cols, rows], axis=1).astype(np.float64)
-    pts -= pts.mean(axis=0)
-    eigvals, eigvecs = np.linalg.eigh(pts.T @ pts / len(pts))
+    _, _, across, along = _principal_axes(mask)
     # (nearly all of them: a stray pixel or two where the line grazes a speck or a corner)
-    across = np.abs(pts @ eigvecs[:, 0])
+    across = np.abs(across)
     if np.percentile(across, 97) > SCRATCH_STRAIGHT_PX:
         return 0.0
-    along = (pts @ eigvecs[:, 1])[across <= SCRATCH_STRAIGHT_PX]
+    along = along[across <= SCRATCH_STRAIGHT_PX]
     return float(along.max() - along.min())
 
 
