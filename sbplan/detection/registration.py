@@ -342,7 +342,7 @@ def _agreeing_fit(src: np.ndarray, dst: np.ndarray, hint: np.ndarray, inlier_px:
     one symbol in a wrong place lies far off any fit and sends the frame to RANSAC."""
     matrix, keep, rms = _trimmed_fit(src, dst)
     moved = apply(matrix, src)
-    if float(np.abs(moved - dst).max()) > inlier_px / math.sqrt(2):
+    if float(_distances(moved, dst).max()) > inlier_px:
         return None
     if float(np.abs(moved - apply(hint, src)).max()) > FAST_PITCH * pitch:
         return None
