@@ -32,6 +32,7 @@ import json
 import math
 import platform
 import time
+from dataclasses import replace
 from typing import TYPE_CHECKING, Any, Callable, TypeVar, cast
 
 import cv2
@@ -39,10 +40,11 @@ import numpy as np
 
 from sbplan import registry
 from sbplan.bench.baselines import AbsDiff, ArucoGrid, Mog2
-from sbplan.bench.evaluation import Scores, condition_scenes, score_cells
-from sbplan.contracts import StageChoices
+from sbplan.bench.evaluation import FootprintScores, Scores, condition_scenes, score_cells, score_footprints
+from sbplan.contracts import FootprintRefiner, StageChoices
 from sbplan.detection import Detector
 from sbplan.detection.calibration import DEFAULT_STAGES, calibrate
+from sbplan.detection.obstacles import OBSTACLE_MODELS, obstacles_from_outlines
 from sbplan.errors import InputError, SbplanError
 from sbplan.imageio import write_image
 from sbplan.synth import CONDITIONS, FloorSpec
@@ -263,20 +265,13 @@ FOOTPRINTS = ("pixels", "cells")
 
 def _footprints(cond: str, detector, detections: list, repeat: int, cpu: dict[str, list[float]]) -> list[dict]:
     """Footprint rows of one condition: each of :data:`FOOTPRINTS` on the default pipeline's cells."""
-    from dataclasses import replace
-
-    from sbplan.bench.evaluation import FootprintScores, score_footprints
-    from sbplan.detection.obstacles import OBSTACLE_MODELS, obstacles_from_outlines
-    from sbplan.contracts import FootprintRefiner
-    from sbplan.registry import registry
-
     cal = detector.calibration
     rows = []
     for name in FOOTPRINTS:
-        stage = cast(FootprintRefiner, registry().create("footprint", name))
+        stage = cast(FootprintRefiner, registry.registry().create("footprint", name))
         data = stage.prepare(cal)
         if data is None and stage.fallback:
-            stage = cast(FootprintRefiner, registry().create("footprint", stage.fallback))
+            stage = cast(FootprintRefiner, registry.registry().create("footprint", stage.fallback))
             data = stage.prepare(cal)
         total, times = FootprintScores(), []
         for image, detection, truth in detections:
