@@ -654,18 +654,24 @@ def _principal_axes(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarra
     return centre, eigvecs[:, 1], pts @ eigvecs[:, 0], pts @ eigvecs[:, 1]
 
 
+#: A piece of a scratch has a course of its own (:func:`_straight_courses`) when it is at least
+#: this long (pixels): twice the band a straight scratch's pixels lie in.
+SCRATCH_COURSE_PX = 2 * SCRATCH_STRAIGHT_PX
+
+
 def _straight_courses(mask: np.ndarray) -> np.ndarray:
-    """The straight lines through each piece of ``mask`` (H, W; 0/1 uint8) whose pixels all lie
-    within :data:`SCRATCH_STRAIGHT_PX` of its principal axis, drawn across the whole mask one pixel
-    wide. uint8 0/1."""
+    """The straight lines through each piece of ``mask`` (H, W; 0/1 uint8) at least
+    :data:`SCRATCH_COURSE_PX` long whose pixels all lie within :data:`SCRATCH_STRAIGHT_PX` of its
+    principal axis, drawn across the whole mask one pixel wide. uint8 0/1."""
     out = np.zeros_like(mask)
     n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
     reach = float(sum(mask.shape))
     for k in range(1, n):
         if stats[k, cv2.CC_STAT_AREA] < SCRATCH_SPECK_PX:
             continue
-        centre, direction, across, _ = _principal_axes(labels == k)
-        if np.abs(across).max() > SCRATCH_STRAIGHT_PX:
+        centre, direction, across, along = _principal_axes(labels == k)
+        # (a speck has no direction of its own: its "course" would be drawn anywhere)
+        if np.abs(across).max() > SCRATCH_STRAIGHT_PX or np.ptp(along) < SCRATCH_COURSE_PX:
             continue
         a, b = centre - reach * direction, centre + reach * direction
         cv2.line(out, (int(round(a[0])), int(round(a[1]))), (int(round(b[0])), int(round(b[1]))), 1, 1)
