@@ -28,7 +28,7 @@ from .calibration.shapes import length_filter_steps
 from .obstacles import obstacles_from_outlines
 from .outline_checks import (EDGE_DEPTH_PX, EDGE_SAMPLES, EDGE_UNPROBED, scratch_points, INNER_MARGIN_PX, SAMPLES, edge_factors, edge_kept,
                              edge_probes, hidden_piece, intact_edges, reference_samples, samples_deviation,
-                             scratches_repaired, signed_distance_map)
+                             repaired_piece_hidden, scratches_repaired, signed_distance_map)
 from .registration import MIN_SYMBOLS, CameraMotion, apply, centre_window, grey_centres, refine, register_pairs
 from .result import CellDetection, Detection
 from .working import WorkScale
@@ -325,7 +325,8 @@ class Detector:
                     outlines = [motion.to_frame(o) for o in outlines]
                 intact[broken] = scratches_repaired(gray, outlines, ex[broken], ey[broken],
                                                     self._edge_factors[missing[broken]],
-                                                    max_break=limit[broken], gap=gap[broken])
+                                                    max_break=limit[broken], gap=gap[broken],
+                                                    piece_hidden=self._piece_hidden(missing[broken], motion))
             whole = missing[intact]
             rescued = len(whole)
             if rescued > max(matched_count, RESCUE_MIN):
@@ -352,6 +353,21 @@ class Detector:
             log.warning(motion.warning, extra={"data": {"camera": motion.to_json()}})
         return CellDetection(~found, matched_count, matched, candidates, timings, gray.shape, motion,
                              symbols_rescued=rescued)
+
+    def _piece_hidden(self, cells: np.ndarray, motion: CameraMotion):
+        """The whole-symbol test :func:`scratches_repaired` asks of the repaired symbols of
+        ``cells`` (flat indices): the outline checks' inward test on the repaired window, with
+        the reference points where ``motion`` puts them."""
+        lin = motion.matrix[:2, :2] / motion.scale
+
+        def hidden(i: int, repaired: np.ndarray, origin: tuple[int, int], level: float) -> bool:
+            cell = int(cells[i])
+            points, inward = self.ref_points[cell], self.inward[cell]
+            if motion.moved:
+                points, inward = motion.to_frame(points), inward @ lin.T
+            return repaired_piece_hidden(repaired, origin, points, inward,
+                                         self.allowance[cell] * motion.scale, level)
+        return hidden
 
     def _symbols(self, gray: np.ndarray, bands: RowBands | None, lap) -> tuple:
         """Binarize, extract, approximate and match one frame (at the working resolution): the
