@@ -635,7 +635,9 @@ def _scratch_like(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, level
         return False
     near = cv2.dilate(thin, np.ones((7, 7), np.uint8)) > 0
     core = cv2.erode(inside, np.ones((5, 5), np.uint8)) > 0
-    beside = near & ~(cv2.dilate(thin, np.ones((3, 3), np.uint8)) > 0) & core
+    # (a scratch's own pixels where the thin-line mask has gaps along it lie on its course)
+    line = thin | _straight_courses(over.astype(np.uint8))
+    beside = near & ~(cv2.dilate(line, np.ones((3, 3), np.uint8)) > 0) & core
     if not beside.any():
         return False
     around = patch[beside].astype(np.float32)
