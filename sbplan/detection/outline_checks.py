@@ -688,7 +688,7 @@ def _straight_length(mask: np.ndarray) -> float:
     _, _, across, along = _principal_axes(mask)
     # (nearly all of them: a stray pixel or two where the line grazes a speck or a corner)
     across = np.abs(across)
-    if np.percentile(across, 97) > SCRATCH_STRAIGHT_PX:
+    if np.percentile(across, 95) > SCRATCH_STRAIGHT_PX:
         return 0.0
     along = along[across <= SCRATCH_STRAIGHT_PX]
     return float(along.max() - along.min())
