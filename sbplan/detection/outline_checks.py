@@ -507,6 +507,9 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
         # level. Inside the reference outline it is painted with the symbol's ink (where the
         # scratch runs within a pixel or two of the edge, the ink between them is lost in the
         # blur and the opening reads floor there), outside with the opened image.
+        # (each piece inside the symbol with ink beside it: a striped object over a scratched
+        # symbol has its own surface beside its light stripes, which are not painted over)
+        thin = thin & ~_foreign_pieces(patch, thin, inside, v, step)
         scratch = cv2.dilate(thin, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))) > 0
         repaired = patch.copy()
         repaired[scratch] = opened[scratch]
@@ -643,6 +646,29 @@ def _scratch_like(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, level
     around = patch[beside].astype(np.float32)
     return (float(median(around)) <= ink + SCRATCH_INK_LEVEL * step
             and float(np.percentile(around, 90)) <= ink + 2 * SCRATCH_INK_LEVEL * step)
+
+
+def _foreign_pieces(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, levels: np.ndarray,
+                    step: float) -> np.ndarray:
+    """The pieces of the thin bright lines (0/1 uint8 ``thin``, (H, W)) inside the symbol
+    (``inside``, 0/1 uint8) with something other than its ink beside them, as a 0/1 uint8 mask.
+    :func:`_scratch_like` judges the lines together; this, each piece on its own."""
+    out = np.zeros_like(thin)
+    # (the pieces inside the symbol: outside it, an obstacle's lines and a scratch may join)
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(thin & inside, connectivity=8)
+    if n <= 2:
+        return out
+    ink = float(np.percentile(levels[0], 25))
+    core = cv2.erode(inside, np.ones((5, 5), np.uint8)) > 0
+    for k in range(1, n):
+        if stats[k, cv2.CC_STAT_AREA] < SCRATCH_SPECK_PX:
+            continue
+        piece = (labels == k).astype(np.uint8)
+        beside = (cv2.dilate(piece, np.ones((7, 7), np.uint8)) > 0) & \
+            ~(cv2.dilate(piece, np.ones((3, 3), np.uint8)) > 0) & core
+        if beside.any() and float(median(patch[beside])) > ink + SCRATCH_INK_LEVEL * step:
+            out[piece > 0] = 1
+    return out
 
 
 def _principal_axes(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
