@@ -314,6 +314,9 @@ class Service:
         pmap = self._maps.get(key)
         if pmap is None:
             pmap = self._maps[key] = PlanningMap(snap.obstacles, robot_radius=radius, margin=margin, bounds=snap.bounds)
+            # the service asks many routes of one map: its corner-to-corner table once (tens of
+            # ms on a 50-obstacle floor), then a query costs the visibility of its two ends
+            pmap.prepare_routes()
             while len(self._maps) > MAPS_KEPT:
                 self._maps.popitem(last=False)
         else:
