@@ -45,6 +45,7 @@ from ..planning import PlanningMap, detection_obstacles, plan
 from . import images, models
 from .errors import BusyError, NoFrameError, UnknownRouteError, status_and_code
 from .state import RouteRecord, Snapshot, State, obstacle_key, route_model
+from .workers import PlannerPool
 
 
 #: Planning maps kept (one per frame and robot size): routes of a few robot sizes on the current
@@ -92,11 +93,14 @@ class Service:
     max_routes : int
         Routes kept; beyond it the least recently changed one is dropped.
     limits : Limits
+    planner_processes : int
+        Processes that plan ``POST /routes`` queries (:mod:`.workers`), one per core is best; 0
+        (default): the state thread plans them. Replans always run on the state thread.
     """
 
     def __init__(self, calibration: Calibration, *, use: str = DEFAULT_OBSTACLE_MODEL, planner: str = "aux-corner",
                  time_limit: float = 1.0, max_routes: int = 256, limits: Limits = Limits(),
-                 detector: Detector | None = None):
+                 detector: Detector | None = None, planner_processes: int = 0):
         if use not in OBSTACLE_MODELS:
             raise InputError(f"use: expected one of {', '.join(OBSTACLE_MODELS)}, got {use!r}")
         if max_routes < 1:
@@ -114,13 +118,16 @@ class Service:
         self._state = State()
         self._detect_pool = concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="sbplan-detect")
         self._state_pool = concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="sbplan-state")
-        self._state_thread: int | None = None
-        self._state_pool.submit(self._claim_state_thread).result()
+        # Held by every change (see the module's docstring); _writer: the thread holding it.
+        self._write_lock = threading.Lock()
+        self._writer: int | None = None
         self._route_ids = itertools.count(1)
         self._maps: OrderedDict[tuple[int, float, float], PlanningMap] = OrderedDict()  # state thread only
         self._seq = 0
         self._pending = 0
         self._listeners: list[Callable[[OutEvent], None]] = []
+        # route requests (POST /routes) planned in processes of their own: see .workers
+        self._planners = PlannerPool(planner_processes) if planner_processes > 0 else None
 
     # -- reading ----------------------------------------------------------------------------------
     @property
@@ -153,7 +160,7 @@ class Service:
 
     def publish(self, model: type[BaseModel], owner: str | None = None, **fields: Any) -> concurrent.futures.Future:
         """Number and send an event of class ``model`` from any thread (a live source's own events)."""
-        return self._state_pool.submit(self._emit, model, owner, fields)
+        return self._state_submit(self._emit, model, owner, fields)
 
     def _emit(self, model: type[BaseModel], owner: str | None, fields: dict) -> None:
         self._check_thread()
@@ -192,7 +199,7 @@ class Service:
                 return
             # submitted from this thread, in detection order: frames are made current in order
             try:
-                commit = self._state_pool.submit(self._commit, staged)
+                commit = self._state_submit(self._commit, staged)
             except RuntimeError as exc:  # shutting down
                 done.set_exception(exc)
                 return
@@ -223,7 +230,7 @@ class Service:
                          received: float | None = None) -> tuple[Snapshot, list[str]]:
         """Make a detection made elsewhere (a live source's) current; blocks until done."""
         staged = self._stage(detection, source=source, name=name, received=time.time() if received is None else received)
-        return self._state_pool.submit(self._commit, staged).result()
+        return self._state_submit(self._commit, staged).result()
 
     def _stage(self, detection: Detection, *, source: str, name: str | None, received: float) -> dict:
         """The work of making a snapshot that needs no state (runs on the detection thread)."""
@@ -281,17 +288,37 @@ class Service:
 
     # -- routes -----------------------------------------------------------------------------------
     async def create_route(self, request: models.RouteRequest) -> models.Route:
-        return await asyncio.wrap_future(self._state_pool.submit(self._create_route, request))
+        pool = self._planners
+        if pool is None or not pool.alive:
+            return await asyncio.wrap_future(self._state_submit(self._create_route, request))
+        # planned in a planning process, recorded on the state thread
+        snap = self.snapshot()
+        radius = self._radius(request.robot_radius)
+        route = await pool.plan(snap.frame, snap.obstacles, snap.bounds, radius=radius, margin=float(request.margin),
+                                start=request.start, goal=request.goal, planner=self.planner,
+                                time_limit=self.time_limit)
+        # Recording it is quick (no planning, unless a newer frame came meanwhile): done here
+        # when no change is running, else on the state thread. Handing it over costs more than
+        # the record itself: the two threads then pass the GIL back and forth.
+        if self._write_lock.acquire(blocking=False):
+            try:
+                if self._state.snapshot is snap:
+                    self._writer = threading.get_ident()
+                    return self._add_route(request, snap, radius, route)
+            finally:
+                self._writer = None
+                self._write_lock.release()
+        return await asyncio.wrap_future(self._state_submit(self._add_route, request, snap, radius, route))
 
     async def replan_route(self, rid: str, request: models.ReplanRequest) -> models.Route:
-        return await asyncio.wrap_future(self._state_pool.submit(self._replan_route, rid, request))
+        return await asyncio.wrap_future(self._state_submit(self._replan_route, rid, request))
 
     async def delete_route(self, rid: str) -> None:
-        await asyncio.wrap_future(self._state_pool.submit(self._delete_route, rid))
+        await asyncio.wrap_future(self._state_submit(self._delete_route, rid))
 
     def set_position(self, rid: str, position: tuple[float, float]) -> concurrent.futures.Future:
         """Record where a route's robot is (the next replan because of a new obstacle starts there)."""
-        return self._state_pool.submit(self._set_position, rid, position)
+        return self._state_submit(self._set_position, rid, position)
 
     def _radius(self, value: float | None) -> float:
         if value is not None:
@@ -325,22 +352,36 @@ class Service:
 
     def _create_route(self, req: models.RouteRequest) -> models.Route:
         self._check_thread()
-        old = self._state
         snap = self.snapshot()
         radius = self._radius(req.robot_radius)
         route = self._plan(snap, (), req.start, req.goal, radius, req.margin)
+        return self._add_route(req, snap, radius, route)
+
+    def _add_route(self, req: models.RouteRequest, snap: Snapshot, radius: float, route: Any) -> models.Route:
+        """Keep a route planned on ``snap`` (state thread). Planned in a planning process, it may
+        come back after a newer frame was made current, whose check of the routes it missed:
+        it is checked here against that frame (and replanned if a new obstacle blocks it)."""
+        self._check_thread()
+        old = self._state
         rid = f"r{next(self._route_ids)}"
         model = route_model(rid=rid, owner=req.owner, version=1, frame=snap.frame, reason="created", route=route,
                             start=req.start, goal=req.goal, position=req.start, robot_radius=radius,
                             margin=req.margin, extras=0, planner=self.planner)
         rec = RouteRecord(model=model, route=route, goal=(req.goal[0], req.goal[1]), position=(req.start[0], req.start[1]),
                           robot_radius=radius, margin=float(req.margin), extras=(), planned_on=snap.keys)
+        current = old.snapshot
+        later = None
+        if current is not snap and current is not None:
+            later = self._check_route(rec, current)
         routes = dict(old.routes)
-        routes[rid] = rec
+        routes[rid] = rec if later is None else later
         while len(routes) > self.max_routes:
             del routes[next(iter(routes))]
         self._state = old.with_routes(routes)
         self._emit(models.RouteEvent, rec.owner, dict(route=model))
+        if later is not None and later.model is not model:
+            self._emit(models.RouteEvent, later.owner, dict(route=later.model))
+            return later.model
         return model
 
     def _replan_route(self, rid: str, req: models.ReplanRequest) -> models.Route:
@@ -400,17 +441,28 @@ class Service:
         self._state = old.with_routes(routes)
 
     # -- threads ----------------------------------------------------------------------------------
-    def _claim_state_thread(self) -> None:
-        self._state_thread = threading.get_ident()
+    def _state_submit(self, fn: Callable, *args: Any) -> concurrent.futures.Future:
+        """Run a change on the state thread, as the writer."""
+        return self._state_pool.submit(self._as_writer, fn, *args)
+
+    def _as_writer(self, fn: Callable, *args: Any) -> Any:
+        with self._write_lock:
+            self._writer = threading.get_ident()
+            try:
+                return fn(*args)
+            finally:
+                self._writer = None
 
     def _check_thread(self) -> None:
-        # every write runs on the state thread: that is what makes read-modify-write safe
-        assert threading.get_ident() == self._state_thread, "state changed outside the state thread"
+        # every write holds the write lock: that is what makes read-modify-write safe
+        assert threading.get_ident() == self._writer, "state changed without the write lock"
 
     def close(self) -> None:
         """Stop the worker threads (work already submitted finishes first)."""
         self._detect_pool.shutdown(wait=True)
         self._state_pool.shutdown(wait=True)
+        if self._planners is not None:
+            self._planners.close()
 
 
 @dataclass(frozen=True)
