@@ -253,7 +253,7 @@ class Service:
         info = dict(frame=frame, received=staged["received"], source=staged["source"], name=staged["name"])
         snap = Snapshot(frame=frame, model=models.State.model_construct(**dict(checked), **info, age_s=0.0), **staged)
         changed: list[RouteRecord] = []
-        routes = dict(old.routes)
+        routes = old.routes_copy()
         if old.snapshot is None or snap.keys != old.snapshot.keys:
             for rid, rec in old.routes.items():
                 new = self._check_route(rec, snap)
@@ -373,7 +373,7 @@ class Service:
         later = None
         if current is not snap and current is not None:
             later = self._check_route(rec, current)
-        routes = dict(old.routes)
+        routes = old.routes_copy()
         routes[rid] = rec if later is None else later
         while len(routes) > self.max_routes:
             del routes[next(iter(routes))]
@@ -418,7 +418,7 @@ class Service:
 
     def _put(self, rec: RouteRecord) -> None:
         old = self._state
-        routes = dict(old.routes)
+        routes = old.routes_copy()
         routes.pop(rec.id, None)
         routes[rec.id] = rec
         self._state = old.with_routes(routes)
@@ -427,7 +427,7 @@ class Service:
         self._check_thread()
         rec = self.route(rid)
         old = self._state
-        routes = dict(old.routes)
+        routes = old.routes_copy()
         del routes[rid]
         self._state = old.with_routes(routes)
         self._emit(models.RouteDeletedEvent, rec.owner, dict(id=rid, owner=rec.owner))
@@ -436,7 +436,7 @@ class Service:
         self._check_thread()
         rec = self.route(rid)
         old = self._state
-        routes = dict(old.routes)
+        routes = old.routes_copy()
         routes[rid] = rec.evolve(position=tuple(position))
         self._state = old.with_routes(routes)
 
