@@ -4,19 +4,26 @@ Threads, and why:
 
 - **the detection thread** (one): a :class:`~sbplan.detection.Detector` keeps the camera's last
   pose to register the next frame, so frames are decoded and detected one at a time, in order.
-- **the state thread** (one): the only writer of :attr:`Service.state`. It makes a detection
-  current (and replans the routes it blocks), plans, replans and deletes routes. Each change
-  builds a new immutable :class:`~sbplan.service.state.State` and swaps it in with one assignment,
-  so a reader (any thread) sees the state before or after a change, never half of it; a change
-  that reads the state and writes it back cannot interleave with another, because they all run
-  here, one after the other. It also keeps planning on one thread: ``sbplan.plan``'s map cache and
-  a map's visibility cache are filled lazily.
-- the caller's threads (the event loop, a live source's reader) only read ``state`` and wait on
-  these two. The CPU-heavy work (decoding, detection, planning) never runs on the event loop.
+- **the state thread** (one): makes a detection current (and replans the routes it blocks),
+  plans routes (unless planning processes do), replans and deletes them. Each change builds a
+  new immutable :class:`~sbplan.service.state.State` and swaps it in with one assignment, so a
+  reader (any thread) sees the state before or after a change, never half of it. Every change
+  holds the service's write lock, so a change that reads the state and writes it back cannot
+  interleave with another. The state thread takes the lock for each of its changes; the event
+  loop takes it only without waiting, to record a route a planning process planned (a few dozen
+  microseconds, no planning: handing that to the state thread cost more than doing it, the two
+  threads passing the GIL back and forth), and leaves it to the state thread when a change is
+  running. Planning on one map stays on one thread: a map's visibility cache fills lazily.
+- **the planning processes** (``planner_processes``, :mod:`.workers`): plan ``POST /routes``
+  queries on every core, each with its own copy of the current frame's maps; they keep no state
+  that matters.
+- the caller's threads (the event loop, a live source's reader) read ``state`` and wait on the
+  threads and processes above. The CPU-heavy work (decoding, detection, planning, building a
+  map) never runs on the event loop.
 
-Events (new detections, route changes, rejected frames) are numbered here, on the state thread,
-in the order they happen, serialized to JSON text once, and handed to the listeners (the
-WebSocket broker) as :class:`OutEvent`.
+Events (new detections, route changes, rejected frames) are numbered by the writer that makes
+the change, in the order they happen, serialized to JSON text once, and handed to the listeners
+(the WebSocket broker) as :class:`OutEvent`.
 
 A live source hooks in with :meth:`process_frame` (an image in, detection and commit done) or,
 when it detects itself, :meth:`commit_detection`; its own events go out through :meth:`publish`.
@@ -151,7 +158,8 @@ class Service:
 
     # -- events -----------------------------------------------------------------------------------
     def add_listener(self, listener: Callable[[OutEvent], None]) -> None:
-        """``listener(event)`` is called on the state thread for every event; it must not block."""
+        """``listener(event)`` is called for every event by the writer that made it (the state
+        thread, or the event loop recording a route); it must not block."""
         self._listeners.append(listener)
 
     def remove_listener(self, listener: Callable[[OutEvent], None]) -> None:
