@@ -28,7 +28,7 @@ from .calibration.shapes import length_filter_steps
 from .obstacles import obstacles_from_outlines
 from .outline_checks import (EDGE_DEPTH_PX, EDGE_SAMPLES, EDGE_UNPROBED, scratch_points, INNER_MARGIN_PX, SAMPLES, edge_factors, edge_kept,
                              edge_probes, hidden_piece, intact_edges, reference_samples, samples_deviation,
-                             scratches_repaired, signed_distance_map)
+                             repaired_piece_hidden, scratches_repaired, signed_distance_map)
 from .registration import MIN_SYMBOLS, CameraMotion, apply, centre_window, grey_centres, refine, register_pairs
 from .result import CellDetection, Detection
 from .working import WorkScale
@@ -319,21 +319,27 @@ class Detector:
             # a few cells only: an obstacle over a symbol breaks much of its edge, scratches a few
             # points, and a floor that is mostly occupied is not worn symbols
             broken = np.flatnonzero(~intact & ((~kept).mean(axis=1) <= SCRATCH_BROKEN_SHARE))
+            # (the symbols whose edge shows at every point: what a matcher that does not fit the
+            # floor leaves unmatched; scratched symbols break their edge here and there)
+            plain = int(kept.all(axis=1).sum())
             if 0 < len(broken) <= SCRATCH_CELLS:
                 outlines = [cal.symbol_polygons[c] for c in missing[broken]]
                 if moved:
                     outlines = [motion.to_frame(o) for o in outlines]
                 intact[broken] = scratches_repaired(gray, outlines, ex[broken], ey[broken],
                                                     self._edge_factors[missing[broken]],
-                                                    max_break=limit[broken], gap=gap[broken])
+                                                    max_break=limit[broken], gap=gap[broken],
+                                                    piece_hidden=self._piece_hidden(missing[broken], motion))
             whole = missing[intact]
             rescued = len(whole)
-            if rescued > max(matched_count, RESCUE_MIN):
+            if plain > max(matched_count, RESCUE_MIN):
                 # The edge check rescues symbols the binary image spoiled; it does not find them.
-                # Deciding more cells than matching did, it would be answering alone.
+                # Deciding more cells than matching did, it would be answering alone. (Only the
+                # symbols whose edge is unbroken count: on a worn floor with many objects the
+                # scratched symbols it calls whole can outnumber the ones matched.)
                 raise DetectionError(
                     f"the matcher ({self.matcher.name}) took only {matched_count} of {cal.symbols_expected} symbols "
-                    f"for the symbol, and the grey-level edge check would call {rescued} more free: the matcher or "
+                    f"for the symbol, and the grey-level edge check would call {plain} more free: the matcher or "
                     "its threshold does not fit this floor (a broken or swapped matcher, a calibration made with "
                     "another one, or symbols worn past recognition); recalibrate with the matcher you detect with")
             if rescued:
@@ -352,6 +358,21 @@ class Detector:
             log.warning(motion.warning, extra={"data": {"camera": motion.to_json()}})
         return CellDetection(~found, matched_count, matched, candidates, timings, gray.shape, motion,
                              symbols_rescued=rescued)
+
+    def _piece_hidden(self, cells: np.ndarray, motion: CameraMotion):
+        """The whole-symbol test :func:`scratches_repaired` asks of the repaired symbols of
+        ``cells`` (flat indices): the outline checks' inward test on the repaired window, with
+        the reference points where ``motion`` puts them."""
+        lin = motion.matrix[:2, :2] / motion.scale
+
+        def hidden(i: int, repaired: np.ndarray, origin: tuple[int, int], level: float) -> bool:
+            cell = int(cells[i])
+            points, inward = self.ref_points[cell], self.inward[cell]
+            if motion.moved:
+                points, inward = motion.to_frame(points), inward @ lin.T
+            return repaired_piece_hidden(repaired, origin, points, inward,
+                                         self.allowance[cell] * motion.scale, level)
+        return hidden
 
     def _symbols(self, gray: np.ndarray, bands: RowBands | None, lap) -> tuple:
         """Binarize, extract, approximate and match one frame (at the working resolution): the

@@ -343,19 +343,24 @@ def pixel_outlines(gray: np.ndarray, occupied: np.ndarray, reference: FootprintR
     # where to look: the occupied cells and their neighbours (reach > 1: further)
     k = max(int(np.ceil(reach)), 0)
     near = cv2.dilate(occupied.astype(np.uint8), np.ones((2 * k + 1, 2 * k + 1), np.uint8)) > 0
-    roi = _fill((h, w), list(ref.cell_quads[near])) > 0
-    occ = _fill((h, w), list(ref.cell_quads[occupied])) > 0
-    ys, xs = np.nonzero(roi)
-    x0, y0 = max(int(xs.min()) - 1, 0), max(int(ys.min()) - 1, 0)
-    x1, y1 = min(int(xs.max()) + 2, w), min(int(ys.max()) + 2, h)
+    # the window: the ROI's bounding box and a pixel more (cv2.boundingRect reads the mask at
+    # C speed; np.nonzero of the whole image cost more than the ROI's fill)
+    roi = _fill((h, w), list(ref.cell_quads[near]))
+    bx, by, bw, bh = cv2.boundingRect(roi)
+    x0, y0 = max(bx - 1, 0), max(by - 1, 0)
+    x1, y1 = min(bx + bw + 1, w), min(by + bh + 1, h)
     win = (slice(y0, y1), slice(x0, x1))
-    roi, occ = roi[win], occ[win]
+    roi = roi[win] > 0
+    occ = _fill((h, w), list(ref.cell_quads[occupied]))[win] > 0
     # a movement under a quarter pixel is under 1/16 of a small pixel: not worth a warp
     camera = CameraMotion.none() if camera is None else camera
     moved = camera.moved
-    small = _downsample(gray, s, (h, w))
     warp = moved and camera.max_movement_px >= 0.25
-    frame = _in_calibration(small, camera, s, (x0, y0, x1, y1)) if warp else small[win]
+    if warp:
+        frame = _in_calibration(_downsample(gray, s, (h, w)), camera, s, (x0, y0, x1, y1))
+    else:
+        # the window's blocks only: the same block means as the whole frame's
+        frame = _downsample(gray[y0 * s:y1 * s, x0 * s:x1 * s], s, (y1 - y0, x1 - x0))
     # the symbols' ink painted with the floor around it, on a logarithmic scale
     ink = ref.ink[win]
     painted = cv2.blur(frame * ref.floor_weight[win], (ref.paint, ref.paint)) / ref.floor_weight_sum[win]
@@ -396,7 +401,7 @@ def pixel_outlines(gray: np.ndarray, occupied: np.ndarray, reference: FootprintR
         # an area: an opening keeps areas only
         # an area: an opening keeps areas only, drawn 3 pixels in from where texture was measured
         # (the texture's 5 x 5 mean reaches 2 pixels past the print, its 3 x 3 difference one more)
-        printed = cv2.dilate(cv2.erode(printed, _disc(PRINT_OPEN)), _disc(PRINT_OPEN - 6))
+        printed = _opened(printed, PRINT_OPEN, PRINT_OPEN - 6)
         # a printed area that reaches into an occupied cell, all of it: the print runs on where
         # the obstacle reaches beyond its cells
         n, labels = cv2.connectedComponents(printed, connectivity=8)
@@ -449,13 +454,13 @@ def _supported(region: np.ndarray, occ: np.ndarray, floor: np.ndarray, frame: np
     box on a floor the light saturates) the watershed's regions meet anywhere.
     """
     outside = region & ~occ
-    ys, xs = np.nonzero(outside)
-    if not len(ys):
+    bx, by, bw, bh = cv2.boundingRect(outside.view(np.uint8))
+    if bw == 0:
         return region
     # the work is done around the pieces only (the light is measured 15 pixels around them)
     h, w = region.shape
-    y0, y1 = max(int(ys.min()) - 15, 0), min(int(ys.max()) + 16, h)
-    x0, x1 = max(int(xs.min()) - 15, 0), min(int(xs.max()) + 16, w)
+    y0, y1 = max(by - 15, 0), min(by + bh + 15, h)
+    x0, x1 = max(bx - 15, 0), min(bx + bw + 15, w)
     box = (slice(y0, y1), slice(x0, x1))
     ratio = cv2.log(np.maximum(frame[box], np.float32(1))) - log_reference[box]
     seeds = floor[box]
@@ -470,12 +475,27 @@ def _supported(region: np.ndarray, occ: np.ndarray, floor: np.ndarray, frame: np
     n, labels = cv2.connectedComponents(outside[box].astype(np.uint8), connectivity=8)
     if n <= 1:
         return region
-    counts = np.bincount(labels.ravel(), minlength=n).astype(np.float64)
-    hits = np.bincount(labels.ravel(), weights=changed.ravel().astype(np.float64), minlength=n)
+    counts = np.bincount(labels.ravel(), minlength=n)
+    hits = np.bincount(labels[changed], minlength=n)
     drop = hits < share * counts
     drop[0] = False
     out = region.copy()
     out[box] &= ~drop[labels]
+    return out
+
+
+def _opened(mask: np.ndarray, erode: int, dilate: int) -> np.ndarray:
+    """``mask`` (uint8) eroded by a disc ``erode`` wide, then dilated by one ``dilate`` wide; the
+    work is done in the box around the set pixels only (a disc is no separable kernel: it costs
+    its area per pixel, and printed areas are few)."""
+    x, y, bw, bh = cv2.boundingRect(mask)
+    out = np.zeros_like(mask)
+    if bw == 0:
+        return out
+    h, w = mask.shape
+    pad = erode + dilate
+    y0, y1, x0, x1 = max(y - pad, 0), min(y + bh + pad, h), max(x - pad, 0), min(x + bw + pad, w)
+    out[y0:y1, x0:x1] = cv2.dilate(cv2.erode(mask[y0:y1, x0:x1], _disc(erode)), _disc(dilate))
     return out
 
 

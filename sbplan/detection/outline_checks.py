@@ -10,7 +10,7 @@ outline from its cell's reference outline, after removing the common shift, sepa
 from __future__ import annotations
 
 import bisect
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import cv2
 import numpy as np
@@ -443,7 +443,9 @@ SCRATCH_LEVEL = 0.3
 
 def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarray, y: np.ndarray,
                        factors: np.ndarray, *, max_break: int | np.ndarray = 0,
-                       gap: int | np.ndarray = 3) -> np.ndarray:
+                       gap: int | np.ndarray = 3,
+                       piece_hidden: Callable[[int, np.ndarray, tuple[int, int], float], bool] | None = None
+                       ) -> np.ndarray:
     """:func:`edges_intact` after the thin scratches across each symbol are painted over.
 
     Wear scratches a printed symbol: a thin line of floor colour crosses the ink from edge to edge,
@@ -462,6 +464,12 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
     outlines : list of ndarray (K, 2)
         Each symbol's reference outline ``(x, y)`` where the frame shows it.
     x, y, factors : as :func:`edges_intact`, for the same outlines.
+    piece_hidden : callable, optional
+        ``piece_hidden(i, repaired, (x0, y0), level)`` for each symbol whose edge shows all around
+        once repaired: ``repaired`` is the window (uint8) with the scratches painted over, ``(x0,
+        y0)`` its corner in ``gray``, ``level`` the grey level halfway from its ink to its floor; True declares a piece of the symbol hidden after all (the edge
+        probes skip acute tips, and forgive short breaks: an obstacle over a tip of a scratched
+        symbol shows there only). See :func:`repaired_piece_hidden`.
 
     Returns
     -------
@@ -514,7 +522,58 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
         limit = np.broadcast_to(np.asarray(max_break), (len(outlines),))[i:i + 1]
         gaps = np.broadcast_to(np.asarray(gap), (len(outlines),))[i:i + 1]
         out[i] = intact_edges(kept, max_break=limit, gap=gaps, probed=factors[i:i + 1] < EDGE_UNPROBED)[0]
+        if out[i] and piece_hidden is not None:
+            out[i] = not piece_hidden(i, repaired, (x0, y0), float(median(v[0])) + step / 2)
     return out
+
+
+def repaired_piece_hidden(repaired: np.ndarray, origin: tuple[int, int], points: np.ndarray, inward: np.ndarray,
+                          allowance: np.ndarray, threshold: float, *, shift: float = 0.0) -> bool:
+    """Has a symbol whose scratches were painted over (:func:`scratches_repaired`) lost a piece of
+    its reference outline? :func:`hidden_piece`'s test on the repaired window.
+
+    The repaired window is thresholded at ``threshold`` (a grey level between the symbol's ink and
+    the floor) and opened with a 3-pixel square; each reference point is moved into the symbol by
+    its allowance plus the common ``shift`` (pixels the found outline lies inside the reference's,
+    :func:`inward_shift`) and must find ink there, or lie within that distance of the ink's outline.
+
+    Parameters
+    ----------
+    repaired : ndarray (h, w), uint8
+        The window with the scratches painted over.
+    origin : (x0, y0)
+        The window's corner in the frame.
+    points, inward : ndarray (S, 2)
+        The cell's reference points and inward unit normals ``(x, y)`` in the frame's pixels.
+    allowance : ndarray (S,)
+        Each point's allowance in the frame's pixels (calibrated tolerance plus the margin).
+    threshold : float
+        Grey level below which a pixel is ink.
+    shift : float
+        How far (pixels) the symbol's outline lies inside the reference's on the whole.
+
+    Returns
+    -------
+    bool
+    """
+    ink = (repaired < threshold).astype(np.uint8)
+    # opened as the binarizer opens the frames the calibrated tolerances were measured on (they
+    # hold the tips it wears down)
+    ink = cv2.morphologyEx(ink, cv2.MORPH_OPEN, cv2.getStructuringElement(cv2.MORPH_RECT, (3, 3)))
+    contours, _ = cv2.findContours(ink, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    if not contours:
+        return True
+    pts = np.asarray(points, np.float64) - np.asarray(origin, np.float64)
+    depth = np.maximum(np.asarray(allowance, np.float64) + shift, 0.5)
+    q = (pts + (depth - _PIXEL_CENTRE_BIAS)[:, None] * inward).astype(np.float32)
+    shallow = cv2.remap(ink, q[None, :, 0], q[None, :, 1], cv2.INTER_LINEAR,
+                        borderMode=cv2.BORDER_CONSTANT)[0] == 0
+    for j in np.flatnonzero(shallow).tolist():
+        # a piece of the ink that reaches the point (scratches leave the ink in pieces)
+        p = (float(pts[j, 0]), float(pts[j, 1]))
+        if max(cv2.pointPolygonTest(c, p, True) for c in contours) < -depth[j]:
+            return True
+    return False
 
 
 #: A scratched symbol has at most this many thin bright lines over it, covering at most this
@@ -576,7 +635,9 @@ def _scratch_like(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, level
         return False
     near = cv2.dilate(thin, np.ones((7, 7), np.uint8)) > 0
     core = cv2.erode(inside, np.ones((5, 5), np.uint8)) > 0
-    beside = near & ~(cv2.dilate(thin, np.ones((3, 3), np.uint8)) > 0) & core
+    # (a scratch's own pixels where the thin-line mask has gaps along it lie on its course)
+    line = thin | _straight_courses(over.astype(np.uint8))
+    beside = near & ~(cv2.dilate(line, np.ones((3, 3), np.uint8)) > 0) & core
     if not beside.any():
         return False
     around = patch[beside].astype(np.float32)
@@ -595,18 +656,24 @@ def _principal_axes(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarra
     return centre, eigvecs[:, 1], pts @ eigvecs[:, 0], pts @ eigvecs[:, 1]
 
 
+#: A piece of a scratch has a course of its own (:func:`_straight_courses`) when it is at least
+#: this long (pixels): twice the band a straight scratch's pixels lie in.
+SCRATCH_COURSE_PX = 2 * SCRATCH_STRAIGHT_PX
+
+
 def _straight_courses(mask: np.ndarray) -> np.ndarray:
-    """The straight lines through each piece of ``mask`` (H, W; 0/1 uint8) whose pixels all lie
-    within :data:`SCRATCH_STRAIGHT_PX` of its principal axis, drawn across the whole mask one pixel
-    wide. uint8 0/1."""
+    """The straight lines through each piece of ``mask`` (H, W; 0/1 uint8) at least
+    :data:`SCRATCH_COURSE_PX` long whose pixels all lie within :data:`SCRATCH_STRAIGHT_PX` of its
+    principal axis, drawn across the whole mask one pixel wide. uint8 0/1."""
     out = np.zeros_like(mask)
     n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
     reach = float(sum(mask.shape))
     for k in range(1, n):
         if stats[k, cv2.CC_STAT_AREA] < SCRATCH_SPECK_PX:
             continue
-        centre, direction, across, _ = _principal_axes(labels == k)
-        if np.abs(across).max() > SCRATCH_STRAIGHT_PX:
+        centre, direction, across, along = _principal_axes(labels == k)
+        # (a speck has no direction of its own: its "course" would be drawn anywhere)
+        if np.abs(across).max() > SCRATCH_STRAIGHT_PX or np.ptp(along) < SCRATCH_COURSE_PX:
             continue
         a, b = centre - reach * direction, centre + reach * direction
         cv2.line(out, (int(round(a[0])), int(round(a[1]))), (int(round(b[0])), int(round(b[1]))), 1, 1)
@@ -621,7 +688,7 @@ def _straight_length(mask: np.ndarray) -> float:
     _, _, across, along = _principal_axes(mask)
     # (nearly all of them: a stray pixel or two where the line grazes a speck or a corner)
     across = np.abs(across)
-    if np.percentile(across, 97) > SCRATCH_STRAIGHT_PX:
+    if np.percentile(across, 95) > SCRATCH_STRAIGHT_PX:
         return 0.0
     along = along[across <= SCRATCH_STRAIGHT_PX]
     return float(along.max() - along.min())
