@@ -291,6 +291,8 @@ def test_serve_refuses_an_open_host_without_a_token_and_bad_options(cal, tmp_pat
     assert "unknown planner 'teleport'" in capsys.readouterr().err
     assert main(["serve", "-c", good, "--source", str(tmp_path / "nowhere")]) == 2
     assert "not a folder of images" in capsys.readouterr().err
+    assert main(["serve", "-c", good, "--planner-processes", "-1"]) == 2
+    assert "--planner-processes: must be >= 0" in capsys.readouterr().err
     assert is_loopback("127.0.0.1") and is_loopback("::1") and is_loopback("localhost")
     assert not is_loopback("0.0.0.0") and not is_loopback("192.168.1.5")
 
