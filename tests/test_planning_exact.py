@@ -270,3 +270,16 @@ def test_start_within_clearance_escapes_and_says_approximate():
     assert route.status == "approximate"
     np.testing.assert_allclose(route.waypoints[0], (39.5, 50))
     assert route.waypoints[1][0] <= 39.0
+
+
+def test_escape_from_a_pocket_never_steps_through_the_obstacle():
+    # a U open upwards (walls 0.1 thick, a pocket 0.5 wide): with a 0.3 robot radius the whole pocket
+    # is within the clearance, and the nearest free point from its bottom lies through the bottom wall
+    u = Polygon([(2.0, 1.0), (2.7, 1.0), (2.7, 2.2), (2.6, 2.2), (2.6, 1.1), (2.1, 1.1), (2.1, 2.2), (2.0, 2.2)])
+    route = sbplan.plan([u], (2.35, 1.15), (2.35, 0.2), robot_radius=0.3, bounds=(0, 0, 5, 5))
+    assert route.status == "approximate"
+    np.testing.assert_allclose(route.waypoints[0], (2.35, 1.15))
+    for a, b in zip(route.waypoints[:-1], route.waypoints[1:]):
+        assert not shapely.relate_pattern(u, LineString([a, b]), "T********"), (a, b)
+    # out through the opening, then round the outside
+    assert route.waypoints[1][1] > 2.2
