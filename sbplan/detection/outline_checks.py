@@ -559,10 +559,10 @@ def repaired_piece_hidden(repaired: np.ndarray, origin: tuple[int, int], points:
     -------
     bool
     """
-    ink = (repaired < threshold).astype(np.uint8)
     # opened as the binarizer opens the frames the calibrated tolerances were measured on (they
     # hold the tips it wears down)
-    ink = cv2.morphologyEx(ink, cv2.MORPH_OPEN, cv2.getStructuringElement(cv2.MORPH_RECT, (3, 3)))
+    ink = cv2.morphologyEx((repaired < threshold).astype(np.uint8), cv2.MORPH_OPEN,
+                           cv2.getStructuringElement(cv2.MORPH_RECT, (3, 3)))
     contours, _ = cv2.findContours(ink, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
     if not contours:
         return True
