@@ -22,8 +22,8 @@ Threads, and why:
   map) never runs on the event loop.
 
 Events (new detections, route changes, rejected frames) are numbered by the writer that makes
-the change, in the order they happen, serialized to JSON text once, and handed to the listeners
-(the WebSocket broker) as :class:`OutEvent`.
+the change, in the order they happen, and handed to the listeners (the WebSocket broker) as
+:class:`OutEvent`, serialized to JSON text once, when a listener first reads it.
 
 A live source hooks in with :meth:`process_frame` (an image in, detection and commit done) or,
 when it detects itself, :meth:`commit_detection`; its own events go out through :meth:`publish`.
@@ -60,15 +60,33 @@ from .workers import PlannerPool
 MAPS_KEPT = 8
 
 
-@dataclass(frozen=True)
 class OutEvent:
     """An event on its way to the WebSocket clients: ``text`` is its JSON; ``owner`` is set for a
-    route's events (only that owner's subscribers and the unfiltered ones get them)."""
+    route's events (only that owner's subscribers and the unfiltered ones get them).
 
-    seq: int
-    type: str
-    text: str
-    owner: str | None = None
+    Given ``model`` (an event model class) and ``fields`` instead of ``text``, the event is built
+    and serialized on the first read of ``text``, once: with nobody subscribed it never is (every
+    route request makes an event; serializing it cost a tenth of the request's CPU)."""
+
+    __slots__ = ("seq", "type", "owner", "_text", "_model", "_fields")
+
+    def __init__(self, seq: int, type: str, text: str | None = None, owner: str | None = None, *,
+                 model: type[BaseModel] | None = None, fields: dict | None = None):
+        if (text is None) == (model is None):
+            raise ValueError("OutEvent: give text, or model and fields")
+        self.seq, self.type, self.owner = seq, type, owner
+        self._text, self._model, self._fields = text, model, fields
+
+    @property
+    def text(self) -> str:
+        # two threads reading it at once both build the same string: no lock needed
+        if self._text is None:
+            assert self._model is not None  # one of the two was given
+            self._text = self._model(seq=self.seq, **(self._fields or {})).model_dump_json()
+        return self._text
+
+    def __repr__(self) -> str:
+        return f"OutEvent(seq={self.seq}, type={self.type!r}, owner={self.owner!r})"
 
 
 @dataclass(frozen=True)
@@ -175,9 +193,8 @@ class Service:
         self._seq += 1
         if not self._listeners:
             return
-        event = model(seq=self._seq, **fields)
-        kind = getattr(event, "type")  # every event model has its `type` tag (models.Event)
-        out = OutEvent(self._seq, kind, event.model_dump_json(), owner)
+        kind = model.model_fields["type"].default  # every event model has its `type` tag (models.Event)
+        out = OutEvent(self._seq, kind, owner=owner, model=model, fields=fields)
         for listener in list(self._listeners):
             listener(out)
 

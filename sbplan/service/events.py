@@ -1,7 +1,7 @@
 """WS /events: the service's events fanned out to the connected clients.
 
-Events come from the state thread (:class:`sbplan.service.core.OutEvent`, JSON already made) and
-are handed to the event loop; each client has a bounded queue of its own and a task sending from
+Events come from the state thread or the event loop (:class:`sbplan.service.core.OutEvent`, its
+JSON made when first read) and are handed to the event loop; each client has a bounded queue of its own and a task sending from
 it, so one slow or vanished client never holds up the others or the service. A client whose queue
 fills (it reads slower than events come) is disconnected with close code 1013 rather than
 silently losing events: it reconnects and reads ``GET /state`` and ``GET /routes`` to resync.
@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import threading
 from dataclasses import dataclass, field
 
 from pydantic import ValidationError
@@ -52,12 +53,22 @@ class Broker:
 
     def __init__(self, loop: asyncio.AbstractEventLoop):
         self.loop = loop
+        self._thread = threading.get_ident()  # made on the event loop's thread (the app's lifespan)
         self.subscribers: set[Subscriber] = set()
         self.last_seq = 0
 
     def listener(self, event: OutEvent) -> None:
         """The service's listener (the state thread, or the event loop itself): hand the event to
         the event loop."""
+        if threading.get_ident() == self._thread:
+            # The event loop recording a route (every POST /routes): the subscribers cannot
+            # change meanwhile, so with none the event is only counted, never serialized; else
+            # it queues behind the events handed over before it, in order.
+            if not self.subscribers:
+                self.last_seq = max(self.last_seq, event.seq)
+            else:
+                self.loop.call_soon(self._dispatch, event)
+            return
         with contextlib.suppress(RuntimeError):  # the loop closed: the server is stopping
             self.loop.call_soon_threadsafe(self._dispatch, event)
 

@@ -13,7 +13,8 @@ Protocol (a :class:`multiprocessing.connection.Connection` per worker, pickled t
 - ``("frame", frame, obstacles, bounds)``: the obstacles (shapely polygons) of a frame, sent to
   a worker once, before its first query on that frame;
 - ``("plan", job, frame, radius, margin, start, goal, planner, time_limit)``: a query; the answer
-  is ``(job, True, (waypoints, status, planner, time_s))`` or ``(job, False, error)``.
+  is ``(job, True, (waypoints, status, planner, time_s))`` (the waypoints (M, 2) ``(x, y)`` as
+  float64 bytes) or ``(job, False, error)``.
 
 The event loop sends and reads the pipes itself (``loop.add_reader``): no thread of its own.
 """
@@ -30,6 +31,8 @@ import sys
 from collections import OrderedDict
 from multiprocessing.connection import Connection
 from typing import Any
+
+import numpy as np
 
 from ..errors import PluginError, SbplanError
 from ..planning import PlanningMap, Route, plan
@@ -72,7 +75,9 @@ def _serve(conn: Any) -> None:
             else:
                 maps.move_to_end(key)
             r = plan(pmap, start, goal, planner=planner, time_limit=time_limit)
-            reply: tuple = (job, True, (r.waypoints, r.status, r.planner, r.time_s))
+            # the waypoints as raw float64 bytes: pickling the array costs ~25 us a reply
+            wp = np.ascontiguousarray(r.waypoints, dtype=np.float64).tobytes()
+            reply: tuple = (job, True, (wp, r.status, r.planner, r.time_s))
         except SbplanError as exc:
             reply = (job, False, _portable(exc))
         except Exception as exc:  # noqa: BLE001  (a bug: the service answers 500 and logs it)
@@ -155,7 +160,8 @@ class PlannerPool:
         if not ok:
             raise payload
         waypoints, status, name, time_s = payload
-        return Route(waypoints, status=status, planner=name, time_s=time_s)
+        return Route(np.frombuffer(waypoints, dtype=np.float64).reshape(-1, 2), status=status, planner=name,
+                     time_s=time_s)
 
     def _read(self, w: "_Worker") -> None:
         try:
