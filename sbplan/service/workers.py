@@ -8,7 +8,8 @@ planning maps, and answers ``POST /routes`` queries there; the service's state s
 service's process (the pool only plans, it keeps no state that matters: a map is rebuilt from
 the obstacles it was sent).
 
-Protocol (a :class:`multiprocessing.connection.Connection` per worker, pickled tuples):
+Protocol (a socket pair per worker; pickled tuples, each framed by its length as 4 bytes,
+big-endian):
 
 - ``("frame", frame, obstacles, bounds)``: the obstacles (shapely polygons) of a frame, sent to
   a worker once, before its first query on that frame;
@@ -16,7 +17,11 @@ Protocol (a :class:`multiprocessing.connection.Connection` per worker, pickled t
   is ``(job, True, (waypoints, status, planner, time_s))`` (the waypoints (M, 2) ``(x, y)`` as
   float64 bytes) or ``(job, False, error)``.
 
-The event loop sends and reads the pipes itself (``loop.add_reader``): no thread of its own.
+The event loop sends and reads the sockets itself (``loop.add_reader``): no thread of its own.
+Both ends read whatever has arrived and take every whole message from it, and the event loop
+sends the queries of one loop iteration to a worker in one write: with 32 clients the queries
+and answers come in bursts, and a read or write per message (multiprocessing's Connection reads
+each message's length and body separately) cost more of the two cores than the pickling.
 """
 
 from __future__ import annotations
@@ -29,7 +34,6 @@ import socket
 import subprocess
 import sys
 from collections import OrderedDict
-from multiprocessing.connection import Connection
 from typing import Any
 
 import numpy as np
@@ -45,15 +49,44 @@ class WorkerError(RuntimeError):
     """A planning process died or answered with an error that is not the user's (a bug)."""
 
 
-def _serve(conn: Any) -> None:
-    """A worker's loop: frames and queries in, answers out, until ``None`` or the pipe closes."""
-    frames: OrderedDict[int, tuple] = OrderedDict()
-    maps: OrderedDict[tuple, PlanningMap] = OrderedDict()
+def _frame(obj: Any) -> bytes:
+    """``obj`` pickled, after its length (4 bytes, big-endian)."""
+    data = pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL)
+    return len(data).to_bytes(4, "big") + data
+
+
+def _unframe(buf: bytearray) -> list:
+    """The whole messages at the start of ``buf``, removed from it (a partial one stays)."""
+    out, at = [], 0
+    while len(buf) - at >= 4:
+        n = int.from_bytes(buf[at:at + 4], "big")
+        if len(buf) - at - 4 < n:
+            break
+        out.append(pickle.loads(buf[at + 4:at + 4 + n]))
+        at += 4 + n
+    del buf[:at]
+    return out
+
+
+def _messages(sock: socket.socket):
+    """The messages arriving on ``sock`` (blocking), until it closes."""
+    buf = bytearray()
     while True:
         try:
-            msg = conn.recv()
-        except (EOFError, OSError):
+            data = sock.recv(1 << 16)
+        except OSError:
             return
+        if not data:
+            return
+        buf += data
+        yield from _unframe(buf)
+
+
+def _serve(sock: socket.socket) -> None:
+    """A worker's loop: frames and queries in, answers out, until ``None`` or the socket closes."""
+    frames: OrderedDict[int, tuple] = OrderedDict()
+    maps: OrderedDict[tuple, PlanningMap] = OrderedDict()
+    for msg in _messages(sock):
         if msg is None:
             return
         if msg[0] == "frame":
@@ -82,7 +115,10 @@ def _serve(conn: Any) -> None:
             reply = (job, False, _portable(exc))
         except Exception as exc:  # noqa: BLE001  (a bug: the service answers 500 and logs it)
             reply = (job, False, WorkerError(f"planning process: {type(exc).__name__}: {exc}"))
-        conn.send(reply)
+        try:
+            sock.sendall(_frame(reply))
+        except OSError:
+            return
 
 
 def _portable(exc: SbplanError) -> SbplanError:
@@ -118,9 +154,10 @@ class PlannerPool:
             with child:
                 proc = subprocess.Popen([sys.executable, "-c", f"import {__name__} as w; w.main({child.fileno()})"],
                                         pass_fds=(child.fileno(),), stdin=subprocess.DEVNULL)
-            self._workers.append(_Worker(proc, Connection(parent.detach())))
+            self._workers.append(_Worker(proc, parent))
         self._jobs = itertools.count()
         self._loop: asyncio.AbstractEventLoop | None = None
+        self._flush_due = False
 
     @property
     def alive(self) -> bool:
@@ -136,7 +173,7 @@ class PlannerPool:
             self._loop = loop
             for w in self._workers:
                 if w.alive:
-                    loop.add_reader(w.conn.fileno(), self._read, w)
+                    loop.add_reader(w.sock.fileno(), self._read, w)
         elif loop is not self._loop:
             raise RuntimeError("a PlannerPool is driven from one event loop")
         live = [w for w in self._workers if w.alive]
@@ -145,17 +182,16 @@ class PlannerPool:
         w = min(live, key=lambda w: len(w.pending))
         job = next(self._jobs)
         fut = loop.create_future()
-        try:
-            if frame not in w.frames:
-                w.conn.send(("frame", frame, obstacles, bounds))
-                w.frames[frame] = None
-                while len(w.frames) > FRAMES_KEPT:
-                    w.frames.popitem(last=False)
-            w.conn.send(("plan", job, frame, radius, margin, tuple(start), tuple(goal), planner, time_limit))
-        except OSError as exc:
-            self._lost(w)
-            raise WorkerError(f"planning process: {exc}") from None
+        if frame not in w.frames:
+            w.out += _frame(("frame", frame, obstacles, bounds))
+            w.frames[frame] = None
+            while len(w.frames) > FRAMES_KEPT:
+                w.frames.popitem(last=False)
+        w.out += _frame(("plan", job, frame, radius, margin, tuple(start), tuple(goal), planner, time_limit))
         w.pending[job] = fut
+        if not self._flush_due:  # sent after this loop iteration's other requests: one write
+            self._flush_due = True
+            loop.call_soon(self._flush)
         ok, payload = await fut
         if not ok:
             raise payload
@@ -163,23 +199,39 @@ class PlannerPool:
         return Route(np.frombuffer(waypoints, dtype=np.float64).reshape(-1, 2), status=status, planner=name,
                      time_s=time_s)
 
+    def _flush(self) -> None:
+        self._flush_due = False
+        for w in self._workers:
+            if w.out and w.alive:
+                data, w.out = bytes(w.out), bytearray()
+                try:
+                    # blocking: a worker reads as it plans, so only a backlog of megabytes waits
+                    w.sock.sendall(data)
+                except OSError:
+                    self._lost(w)
+
     def _read(self, w: "_Worker") -> None:
         try:
-            job, ok, payload = w.conn.recv()
-        except (EOFError, OSError):
+            data = w.sock.recv(1 << 16)
+        except OSError:
+            data = b""
+        if not data:
             self._lost(w)
             return
-        fut = w.pending.pop(job, None)
-        if fut is not None and not fut.done():
-            fut.set_result((ok, payload))
+        w.buf += data
+        for job, ok, payload in _unframe(w.buf):
+            fut = w.pending.pop(job, None)
+            if fut is not None and not fut.done():
+                fut.set_result((ok, payload))
 
     def _lost(self, w: "_Worker") -> None:
         """A worker's pipe broke: its queries fail, the others go on."""
         if not w.alive:
             return
         w.alive = False
+        w.out = bytearray()
         if self._loop is not None:
-            self._loop.remove_reader(w.conn.fileno())
+            self._loop.remove_reader(w.sock.fileno())
         for fut in w.pending.values():
             if not fut.done():
                 fut.set_result((False, WorkerError("a planning process stopped")))
@@ -189,10 +241,10 @@ class PlannerPool:
         """Stop the processes (call from the event loop's thread, or after it stopped)."""
         for w in self._workers:
             if w.alive and self._loop is not None and not self._loop.is_closed():
-                self._loop.remove_reader(w.conn.fileno())
+                self._loop.remove_reader(w.sock.fileno())
             w.alive = False
             try:
-                w.conn.send(None)
+                w.sock.sendall(bytes(w.out) + _frame(None))
             except OSError:
                 pass
         for w in self._workers:
@@ -201,17 +253,19 @@ class PlannerPool:
             except subprocess.TimeoutExpired:
                 w.proc.kill()
                 w.proc.wait()
-            w.conn.close()
+            w.sock.close()
 
 
 class _Worker:
-    def __init__(self, proc: Any, conn: Any):
-        self.proc, self.conn = proc, conn
+    def __init__(self, proc: Any, sock: socket.socket):
+        self.proc, self.sock = proc, sock
+        self.out = bytearray()  # messages not sent yet (see PlannerPool._flush)
+        self.buf = bytearray()  # bytes read, not a whole message yet
         self.alive = True
         self.pending: dict[int, asyncio.Future] = {}
         self.frames: OrderedDict[int, None] = OrderedDict()  # frames whose obstacles it was sent
 
 
 def main(fd: int) -> None:
-    """A planning process (``PlannerPool`` starts it): serve the connection on ``fd``."""
-    _serve(Connection(fd))
+    """A planning process (``PlannerPool`` starts it): serve the socket on ``fd``."""
+    _serve(socket.socket(fileno=fd))
