@@ -655,38 +655,25 @@ class VisibilityMap:
         seen_s = np.zeros(ns, bool)
         seen_g = np.zeros(ng, bool)
         hidden = 0
-        # The pair np.argmin(total) would give, without scanning the whole matrix (~85 x 85 here)
-        # per step: each row's minimum and its first column; the first row holding the least
-        # minimum and that column are argmin's first minimum in row-major order. Hiding an end
-        # sets its row or column to inf; only the rows whose minimum was in a hidden column
-        # look again.
-        if total.size:
-            rcol = total.argmin(1)
-            rmin = total[np.arange(ns), rcol]
         while total.size:
-            i = int(np.argmin(rmin))
-            v = float(rmin[i])
-            if not math.isfinite(v):
+            k = int(np.argmin(total))
+            if not math.isfinite(total.flat[k]):
                 break
-            j = int(rcol[i])
+            i, j = divmod(k, ng)
             if not seen_s[i]:
                 if not self.segment_free(s, (t.x[cs[i]], t.y[cs[i]])):
                     total[i] = np.inf
-                    rmin[i] = np.inf
                     hidden += 1
                 else:
                     seen_s[i] = True
             if seen_s[i] and not seen_g[j]:
                 if not self.segment_free(g, (t.x[cg[j]], t.y[cg[j]])):
                     total[:, j] = np.inf
-                    rows = np.flatnonzero(rcol == j)
-                    rcol[rows] = total[rows].argmin(1)
-                    rmin[rows] = total[rows, rcol[rows]]
                     hidden += 1
                 else:
                     seen_g[j] = True
             if seen_s[i] and seen_g[j]:
-                return self._table_route(t, s, g, int(cs[i]), int(cg[j])), v
+                return self._table_route(t, s, g, int(cs[i]), int(cg[j])), float(total.flat[k])
             if hidden >= _LAZY_TESTS:
                 # Many hidden ends: test every candidate left at once (the fans).
                 rows = np.flatnonzero(~seen_s & np.isfinite(total).any(1))
