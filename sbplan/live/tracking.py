@@ -80,11 +80,20 @@ class CellHysteresis:
         self.stable = np.zeros(shape, bool)
         self._count = np.zeros(shape, np.int64)
         self._since = np.full(shape, np.nan)
+        self._pending = False  # some cell seen changed and not flipped yet
 
     def update(self, occupied: np.ndarray, time_ms: float) -> np.ndarray:
         """One frame's occupied cells (rows, cols) bool at ``time_ms``; returns the cells whose
         stable state flipped (rows, cols) bool."""
         differ = occupied != self.stable
+        if not differ.any():
+            # the usual frame: nothing pending restarts, nothing flips
+            if self._pending:
+                self._count[:] = 0
+                self._since[:] = np.nan
+                self._pending = False
+            return differ
+        self._pending = True
         self._count = np.where(differ, self._count + 1, 0)
         self._since = np.where(differ, np.where(np.isnan(self._since), time_ms, self._since), np.nan)
         h = self.hysteresis

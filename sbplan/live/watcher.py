@@ -442,8 +442,9 @@ class Watcher:
                 h, w = image.shape[:2]
                 self._thumb = thumb if thumb is not None else cv2.resize(
                     image, (w // THUMB_BLOCK, h // THUMB_BLOCK), interpolation=cv2.INTER_LINEAR)
-        # the camera: report a movement beyond the tolerance, and registration coming back
-        moved_px = self._pose_change(motion.matrix)
+        # the camera: report a movement beyond the tolerance, and registration coming back (a
+        # reused frame has the last frame's pose, which was reported or within the tolerance)
+        moved_px = 0.0 if reused is not None and not self._camera_lost else self._pose_change(motion.matrix)
         if self._camera_lost or moved_px > self.camera_tolerance_px:
             self._camera_lost = False
             self._reported_pose = motion.matrix
