@@ -1,6 +1,7 @@
 """ArUco floor layout, the detection baselines, and `sbplan bench detect` on one tiny scene."""
 
 import json
+import logging
 
 import cv2
 import numpy as np
@@ -153,3 +154,14 @@ def test_bench_detect_bad_options(capsys):
     assert "sbplan: error: --conditions" in capsys.readouterr().err
     assert main(["bench", "detect", "--conditions", "clean", "--scenes", "0"]) != 0
     assert "--scenes" in capsys.readouterr().err
+
+
+def test_bench_detect_keeps_the_camera_warnings_out_of_its_output(capsys):
+    # the camera conditions move the camera on purpose; the tables say by how much
+    args = ["bench", "detect", "--conditions", "shift-8", "--scenes", "1", "--size", "480x360", "--grid", "6x4",
+            "--repeat", "1", "--variants", "default"]
+    assert main(args) == 0
+    captured = capsys.readouterr()
+    assert "camera moved" not in captured.err and "shift-8" in captured.out
+    # ... and leaves the detector's logger as it found it
+    assert not logging.getLogger("sbplan.detection.detector").filters

@@ -265,3 +265,21 @@ def test_json_results_without_parts_are_cut_on_reading(corner, tmp_path):
     assert shapely.union_all(got).symmetric_difference(shapely.union_all(want)).area < 1e-3 * shapely.union_all(want).area
     with pytest.raises(MapFormatError, match="obstacle_model"):
         load_obstacles(tmp_path / "old.json", obstacle_model="hull")
+
+
+def test_a_moved_camera_keeps_its_footprints():
+    """The same obstacles with the camera unmoved and moved by a fraction of a pixel and a small
+    turn: the footprints hold as much of the obstacles (the frame is read in the calibration's
+    geometry at its full resolution, not from blocks interpolated into it)."""
+    floor = FloorSpec(width=800, height=600, cols=8, rows=5)
+    cal = calibrate(render_reference(floor, seed=0))
+    recall = {}
+    for motion in (None, (0.7, -0.7, 0.0, 1.0), (0.0, 0.0, 0.5, 1.0)):
+        detector, total = Detector(cal), FootprintScores()
+        for seed in range(1, 5):
+            effects = {} if motion is None else {"motion": motion}
+            image, truth = render_scene(floor, SceneSpec(n_obstacles=3, effects=effects), seed=seed)
+            total = total + score_footprints(detector(image), truth)
+        recall[motion] = total.recall
+    still = recall.pop(None)
+    assert all(r >= still - 0.002 for r in recall.values()), (still, recall)

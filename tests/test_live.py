@@ -243,7 +243,9 @@ def test_a_blocked_source_is_reported_stalled_within_its_timeout_and_reopened(st
     assert numbers == sorted(numbers)  # nothing from the thread left behind
 
 
-def test_a_paused_python_source_is_stalled_then_resumed(stream):
+@pytest.fixture(scope="module")
+def paused_events(stream):
+    """The events of a Python source that pauses after 3 of 6 frames until it is reported stalled."""
     frames = [cv2.imread(str(stream["folder"] / f"frame-{k:05d}.png"), 0) for k in range(6)]
     go = threading.Event()
 
@@ -259,6 +261,11 @@ def test_a_paused_python_source_is_stalled_then_resumed(stream):
         if e["type"] == "stalled":
             go.set()
     EVENTS_SEEN.extend(events)
+    return events
+
+
+def test_a_paused_python_source_is_stalled_then_resumed(paused_events):
+    events = paused_events
     kinds = [e["type"] for e in events]
     assert kinds.index("stalled") < kinds.index("reconnected")
     back = events[kinds.index("reconnected")]
@@ -466,12 +473,14 @@ def test_an_obstacle_that_stays_keeps_its_outline_while_others_change(stream):
 
 
 # -- events out -------------------------------------------------------------------------------------
-def test_every_event_follows_the_schema(stream, avi_events, folder_events):
+def test_every_event_follows_the_schema(stream, avi_events, folder_events, paused_events):
     import jsonschema
     validator = jsonschema.Draft202012Validator(events_schema())
     validator.check_schema(events_schema())
     kinds = set()
-    for e in EVENTS_SEEN + avi_events + folder_events:
+    # (the fixtures' events hold every kind named below, so the test stands alone when the suite is
+    # split over processes; the other tests' watches add theirs when they ran in this one)
+    for e in EVENTS_SEEN + avi_events + folder_events + paused_events:
         json.dumps(e)  # plain JSON
         errors = sorted(validator.iter_errors(e), key=str)
         assert not errors, f"{e['type']}: {errors[0].message}"

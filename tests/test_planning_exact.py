@@ -128,9 +128,65 @@ def test_segment_leaving_a_corner_along_a_bevel_a_few_eps_long_is_free():
     check_world(56981, 3, 0.0)
 
 
-def check_world(seed, n, radius, size=(2, 30)):
+@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 2**31 - 1), n=st.integers(1, 12), radius=st.sampled_from([0.0, 0.5, 2.0]),
+       fans=st.booleans())
+def test_corner_table_matches_oracle(seed, n, radius, fans):
+    # prepare_routes' all-pairs table (the service's warm maps) answers without A*. ``fans``:
+    # every end's visibility by the fans at once, not one segment at a time.
+    lazy = vismap._LAZY_TESTS
+    vismap._LAZY_TESTS = 0 if fans else lazy
+    try:
+        check_world(seed, n, radius, table=True)
+    finally:
+        vismap._LAZY_TESTS = lazy
+
+
+def test_corner_table_gives_the_searchs_lengths_and_errors():
+    # Both exact: the same lengths (to rounding) and the same errors, on many seeded queries
+    # (free points, and points inside obstacles or their clearance).
+    polys = random_world(7, 30, size=(1, 12))
+    a = PlanningMap(polys, robot_radius=0.5, bounds=(0, 0, SIZE, SIZE))
+    b = PlanningMap(polys, robot_radius=0.5, bounds=(0, 0, SIZE, SIZE))
+    assert b.prepare_routes() and b.vmap._table is not None
+    rng = np.random.default_rng(3)
+    routes = 0
+    for s, g in rng.uniform(0, SIZE, (150, 2, 2)):
+        try:
+            want = a.solve(s, g)
+        except sbplan.PlanningError as exc:
+            with pytest.raises(type(exc)) as got:
+                b.solve(s, g)
+            assert str(got.value) == str(exc)
+            continue
+        route = b.solve(s, g)
+        assert route.length == pytest.approx(want.length, rel=1e-12)
+        assert route.status == want.status
+        routes += 1
+    assert routes > 50
+    assert b.vmap.stats["expansions"] == 0  # the table answered, not the A*
+    # new obstacles drop the table (a copy keeps it): searches are A* again, still exact
+    c = b.copy()
+    c.add_obstacles([box(48, 48, 52, 52)])
+    assert c.vmap._table is None and b.vmap._table is not None
+    assert c.solve((10, 50), (90, 50)).length > 0
+
+
+def test_enclosed_goal_with_the_corner_table_says_why():
+    room = box(40, 40, 60, 60).difference(box(44, 44, 56, 56))
+    pm = PlanningMap([room], robot_radius=0.5, bounds=(0, 0, 100, 100))
+    pm.prepare_routes()
+    with pytest.raises(NoRouteError, match="enclosed"):
+        pm.solve((10, 10), (50, 50))
+    with pytest.raises(NoRouteError, match="not connected"):
+        pm.solve((50, 50), (10, 10))
+
+
+def check_world(seed, n, radius, size=(2, 30), table=False):
     polys = random_world(seed, n, size=size)
     pm = PlanningMap(polys, robot_radius=radius, bounds=(0, 0, SIZE, SIZE))
+    if table:
+        assert pm.prepare_routes()
     rng = np.random.default_rng(seed + 1)
     pts = free_points(pm, rng, 6)
     for s, g in zip(pts[0::2], pts[1::2]):
@@ -214,3 +270,16 @@ def test_start_within_clearance_escapes_and_says_approximate():
     assert route.status == "approximate"
     np.testing.assert_allclose(route.waypoints[0], (39.5, 50))
     assert route.waypoints[1][0] <= 39.0
+
+
+def test_escape_from_a_pocket_never_steps_through_the_obstacle():
+    # a U open upwards (walls 0.1 thick, a pocket 0.5 wide): with a 0.3 robot radius the whole pocket
+    # is within the clearance, and the nearest free point from its bottom lies through the bottom wall
+    u = Polygon([(2.0, 1.0), (2.7, 1.0), (2.7, 2.2), (2.6, 2.2), (2.6, 1.1), (2.1, 1.1), (2.1, 2.2), (2.0, 2.2)])
+    route = sbplan.plan([u], (2.35, 1.15), (2.35, 0.2), robot_radius=0.3, bounds=(0, 0, 5, 5))
+    assert route.status == "approximate"
+    np.testing.assert_allclose(route.waypoints[0], (2.35, 1.15))
+    for a, b in zip(route.waypoints[:-1], route.waypoints[1:]):
+        assert not shapely.relate_pattern(u, LineString([a, b]), "T********"), (a, b)
+    # out through the opening, then round the outside
+    assert route.waypoints[1][1] > 2.2

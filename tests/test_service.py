@@ -291,6 +291,8 @@ def test_serve_refuses_an_open_host_without_a_token_and_bad_options(cal, tmp_pat
     assert "unknown planner 'teleport'" in capsys.readouterr().err
     assert main(["serve", "-c", good, "--source", str(tmp_path / "nowhere")]) == 2
     assert "not a folder of images" in capsys.readouterr().err
+    assert main(["serve", "-c", good, "--planner-processes", "-1"]) == 2
+    assert "--planner-processes: must be >= 0" in capsys.readouterr().err
     assert is_loopback("127.0.0.1") and is_loopback("::1") and is_loopback("localhost")
     assert not is_loopback("0.0.0.0") and not is_loopback("192.168.1.5")
 
@@ -395,9 +397,10 @@ def test_concurrent_requests_never_see_a_half_updated_state(cal):
         assert len({f for f, _, _ in seen}) > 1
 
 
-def test_concurrent_route_requests_get_the_libraries_answers(cal):
+@pytest.mark.parametrize("processes", [0, 1], ids=["state-thread", "planning-process"])
+def test_concurrent_route_requests_get_the_libraries_answers(cal, processes):
     rng = np.random.default_rng(3)
-    with running(cal) as (url, _), client(url) as http:
+    with running(cal, planner_processes=processes) as (url, _), client(url) as http:
         obstacles = _obstacles(http.post("/detect", content=SCENE_PNG).json())
         enlarged = shapely.union_all([p.buffer(0.16) for p in obstacles])
         queries = []
@@ -416,6 +419,36 @@ def test_concurrent_route_requests_get_the_libraries_answers(cal):
         for (s, g), r in zip(queries, answers):
             expected = sbplan.plan(obstacles, s, g, robot_radius=0.15, bounds=(0, 0, 4, 3))
             assert r.json()["length_m"] == pytest.approx(expected.length, rel=1e-6, abs=2e-6)
+
+
+def test_a_planning_process_answers_errors_and_its_loss_falls_back_to_the_state_thread(cal):
+    with running(cal, planner_processes=1) as (url, service), client(url) as http:
+        http.post("/detect", content=SCENE_PNG)
+        _is_error(http.post("/routes", json={"start": [1.0, 1.5], "goal": GOAL}), 422, "start-in-obstacle")
+        first = http.post("/routes", json={"start": START, "goal": GOAL})
+        assert first.status_code == 201 and first.json()["planner"] == "aux-corner"
+        (worker,) = service._planners._workers
+        worker.proc.kill()
+        wait_for(lambda: not service._planners.alive)
+        again = http.post("/routes", json={"start": START, "goal": GOAL})
+        assert again.status_code == 201, again.text
+        assert again.json()["length_m"] == first.json()["length_m"]
+
+
+def test_a_route_planned_on_a_frame_a_newer_one_replaced_is_checked_against_it(cal):
+    # A planning process answers after the state moved on: the route is checked against the newer
+    # frame when it is recorded (the newer frame's check of every route missed it).
+    from sbplan.service import models
+
+    with running(cal) as (url, service), client(url) as http:
+        http.post("/detect", content=EMPTY_PNG)
+        old = service.snapshot()
+        req = models.RouteRequest(start=START, goal=GOAL)
+        straight = sbplan.plan(list(old.obstacles), START, GOAL, robot_radius=0.15, bounds=old.bounds)
+        http.post("/detect", content=SCENE_PNG)  # two of its obstacles block the straight line
+        model = service._state_submit(service._add_route, req, old, 0.15, straight).result()
+        assert model.version == 2 and model.reason == "blocked" and model.length_m > straight.length + 0.1
+        assert http.get(f"/routes/{model.id}").json()["version"] == 2
 
 
 def test_routes_beyond_the_limit_drop_the_least_recently_changed(cal):

@@ -58,6 +58,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--repeats", type=int, default=3, help="repeats per level; medians are reported (default 3)")
     parser.add_argument("--queries", type=int, default=400, help="distinct route queries (default 400)")
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    parser.add_argument("--planner-processes", type=int, default=None, metavar="N",
+                        help="the server's planning processes (default: sbplan serve's, one per core)")
     parser.add_argument("--json", action="store_true", help="print the results as JSON")
 
 
@@ -141,9 +143,17 @@ class Server:
         raise RuntimeError("sbplan serve did not answer /health")
 
     def cpu_seconds(self) -> float:
-        """User + system CPU time the server process used so far."""
-        fields = Path(f"/proc/{self.proc.pid}/stat").read_text().rsplit(")", 1)[1].split()
-        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+        """User + system CPU time the server process and its child processes (the planning
+        processes) used so far."""
+        total = 0
+        for stat in Path("/proc").glob("[0-9]*/stat"):
+            try:
+                fields = stat.read_text().rsplit(")", 1)[1].split()
+            except OSError:  # a process that just ended
+                continue
+            if stat.parent.name == str(self.proc.pid) or fields[1] == str(self.proc.pid):
+                total += int(fields[11]) + int(fields[12])
+        return total / os.sysconf("SC_CLK_TCK")
 
     def stop(self) -> None:
         self.proc.terminate()
@@ -235,7 +245,8 @@ async def _load(host: str, port: int, bodies: list[bytes], clients: int, warmup:
 
 
 def measure(*, clients=(1, 8, 32), paced=((32, 5.0),), seconds: float = 3.0, warmup: float = 0.5,
-            repeats: int = 3, queries: int = 400, seed: int = 0, progress=None) -> dict:
+            repeats: int = 3, queries: int = 400, seed: int = 0, planner_processes: int | None = None,
+            progress=None) -> dict:
     """Build the floor, start the server, detect the floor through it, then load it: closed loop
     with each of ``clients``, then each ``(clients, rate)`` of ``paced``."""
     say = progress or (lambda text: None)
@@ -244,7 +255,8 @@ def measure(*, clients=(1, 8, 32), paced=((32, 5.0),), seconds: float = 3.0, war
     with tempfile.TemporaryDirectory(prefix="sbplan-bench-serve-") as tmp:
         cal_path = calibrate(reference, cell_size=PITCH_M).save(Path(tmp) / "calibration.json")
         say("starting sbplan serve")
-        server = Server(cal_path, "--max-routes", "1024")
+        extra = () if planner_processes is None else ("--planner-processes", str(planner_processes))
+        server = Server(cal_path, "--max-routes", "1024", *extra)
         try:
             png = cv2.imencode(".png", scene)[1].tobytes()
             status, body = asyncio.run(_once(server.host, server.port, "POST", "/detect", png, "image/png"))
@@ -285,7 +297,8 @@ def measure(*, clients=(1, 8, 32), paced=((32, 5.0),), seconds: float = 3.0, war
     return {"obstacles": OBSTACLES, "grid": [COLS, ROWS], "pitch_m": PITCH_M, "radius_m": RADIUS_M,
             "seconds": seconds, "warmup": warmup, "repeats": repeats, "queries": queries, "seed": seed,
             "cpus": os.cpu_count(), "load_average": list(os.getloadavg()), "levels": levels,
-            "python": sys.version.split()[0], "event_loop": _loop_kind()}
+            "python": sys.version.split()[0], "event_loop": _loop_kind(),
+            "planner_processes": "default (one per core)" if planner_processes is None else planner_processes}
 
 
 def _loop_kind() -> str:
@@ -306,8 +319,8 @@ def format_table(result: dict) -> str:
     lines = [f"{result['obstacles']} obstacles on a {result['grid'][0]} x {result['grid'][1]} grid "
              f"(pitch {result['pitch_m']} m), radius {result['radius_m']} m, {result['queries']} queries, seed "
              f"{result['seed']}; {result['seconds']} s per run after {result['warmup']} s warm-up, median of "
-             f"{result['repeats']} runs; server: uvicorn ({result['event_loop']}), Python {result['python']}, "
-             f"{result['cpus']} CPUs",
+             f"{result['repeats']} runs; server: uvicorn ({result['event_loop']}), planning processes: "
+             f"{result['planner_processes']}, Python {result['python']}, {result['cpus']} CPUs",
              "",
              f"{'clients':>7} {'each sends':>13} {'requests/s':>11} {'p50 ms':>8} {'p99 ms':>8} {'max ms':>8} "
              f"{'errors':>7} {'requests':>9} {'server CPU ms/req':>18} {'load':>5}",
@@ -339,7 +352,7 @@ def run(args: argparse.Namespace) -> int:
             or any(n < 1 or not r > 0 for n, r in paced)):
         raise InputError("--clients, --paced, --seconds, --repeats and --queries must be positive")
     result = measure(clients=clients, paced=paced, seconds=args.seconds, warmup=args.warmup, repeats=args.repeats,
-                     queries=args.queries, seed=args.seed,
+                     queries=args.queries, seed=args.seed, planner_processes=args.planner_processes,
                      # on stderr with --json too: stdout carries only the results
                      progress=lambda text: print(f"  {text}", file=sys.stderr, flush=True))
     print(json.dumps(result, indent=2) if args.json else format_table(result))

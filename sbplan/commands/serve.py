@@ -41,6 +41,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--time-limit", type=float, default=1.0, metavar="S", help="seconds per planning query (default 1)")
     parser.add_argument("--max-routes", type=int, default=256, metavar="N",
                         help="routes kept; the least recently changed is dropped beyond (default 256)")
+    parser.add_argument("--planner-processes", type=int, default=None, metavar="N",
+                        help="processes planning route requests (default: one per core; 0: on the service's "
+                             "state thread)")
     parser.add_argument("--max-body-mb", type=float, default=32.0, metavar="MB", help="largest frame upload (default 32)")
     parser.add_argument("--max-pixels", type=int, default=40_000_000, metavar="N",
                         help="largest image, width x height, read from its header before decoding (default 40e6)")
@@ -73,12 +76,15 @@ def run(args: argparse.Namespace) -> int:
                          "python3 -c 'import secrets; print(secrets.token_urlsafe())'")
     if args.max_body_mb <= 0 or args.max_pixels <= 0:
         raise InputError("--max-body-mb and --max-pixels must be > 0")
+    processes = (os.cpu_count() or 1) if args.planner_processes is None else args.planner_processes
+    if processes < 0:
+        raise InputError(f"--planner-processes: must be >= 0, got {processes}")
     from .detect import with_georeference
 
     calibration = with_georeference(load_calibration(args.calibration), args.georef)
     source = open_source(args.source, interval=args.interval) if args.source else None
     service = Service(calibration, use=args.use or args.obstacle_model, planner=args.planner, time_limit=args.time_limit,
-                      max_routes=args.max_routes,
+                      max_routes=args.max_routes, planner_processes=processes,
                       limits=Limits(max_body=int(args.max_body_mb * 2**20), max_pixels=args.max_pixels))
     try:
         sock = bind(args.host, args.port)

@@ -319,6 +319,9 @@ class Detector:
             # a few cells only: an obstacle over a symbol breaks much of its edge, scratches a few
             # points, and a floor that is mostly occupied is not worn symbols
             broken = np.flatnonzero(~intact & ((~kept).mean(axis=1) <= SCRATCH_BROKEN_SHARE))
+            # (the symbols whose edge shows at every point: what a matcher that does not fit the
+            # floor leaves unmatched; scratched symbols break their edge here and there)
+            plain = int(kept.all(axis=1).sum())
             if 0 < len(broken) <= SCRATCH_CELLS:
                 outlines = [cal.symbol_polygons[c] for c in missing[broken]]
                 if moved:
@@ -329,12 +332,14 @@ class Detector:
                                                     piece_hidden=self._piece_hidden(missing[broken], motion))
             whole = missing[intact]
             rescued = len(whole)
-            if rescued > max(matched_count, RESCUE_MIN):
+            if plain > max(matched_count, RESCUE_MIN):
                 # The edge check rescues symbols the binary image spoiled; it does not find them.
-                # Deciding more cells than matching did, it would be answering alone.
+                # Deciding more cells than matching did, it would be answering alone. (Only the
+                # symbols whose edge is unbroken count: on a worn floor with many objects the
+                # scratched symbols it calls whole can outnumber the ones matched.)
                 raise DetectionError(
                     f"the matcher ({self.matcher.name}) took only {matched_count} of {cal.symbols_expected} symbols "
-                    f"for the symbol, and the grey-level edge check would call {rescued} more free: the matcher or "
+                    f"for the symbol, and the grey-level edge check would call {plain} more free: the matcher or "
                     "its threshold does not fit this floor (a broken or swapped matcher, a calibration made with "
                     "another one, or symbols worn past recognition); recalibrate with the matcher you detect with")
             if rescued:

@@ -214,21 +214,24 @@ def _downsample(gray: np.ndarray, scale: int, shape: tuple[int, int]) -> np.ndar
     return small.astype(np.float32)
 
 
-def _in_calibration(small: np.ndarray, camera: CameraMotion, scale: int, box: tuple[int, int, int, int]) -> np.ndarray:
+def _in_calibration(gray: np.ndarray, camera: CameraMotion, scale: int, box: tuple[int, int, int, int]) -> np.ndarray:
     """The window ``box`` (x0, y0, x1, y1, small calibration pixels) of the calibration's view,
-    read from the moved frame's small image ``small``."""
+    read from the moved frame ``gray`` (H, W) at its full resolution, then averaged over
+    ``scale x scale`` blocks as the reference thumbnail was. Warping the frame's blocks instead
+    blurs every edge by the interpolation between them: under a 0.7 px shift the obstacles'
+    recall fell from 0.997 to 0.991 (0.976 under the suite's drift)."""
     x0, y0, x1, y1 = box
-    # small calibration pixel (u, v) -> calibration pixel -> frame pixel -> small frame pixel
-    to_full = np.array([[scale, 0, 0.5 * scale - 0.5], [0, scale, 0.5 * scale - 0.5], [0, 0, 1.0]])
-    to_small = np.linalg.inv(to_full)
-    shift = np.array([[1.0, 0, x0], [0, 1.0, y0], [0, 0, 1.0]])
-    m = to_small @ camera.matrix @ to_full @ shift
-    size = (x1 - x0, y1 - y0)
+    # calibration pixel of the window -> frame pixel
+    shift = np.array([[1.0, 0, x0 * scale], [0, 1.0, y0 * scale], [0, 0, 1.0]])
+    m = camera.matrix @ shift
+    size = ((x1 - x0) * scale, (y1 - y0) * scale)
     if np.allclose(m[2], (0, 0, 1)):
-        return cv2.warpAffine(small, m[:2], size, flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+        full = cv2.warpAffine(gray, m[:2], size, flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
                               borderMode=cv2.BORDER_REPLICATE)
-    return cv2.warpPerspective(small, m, size, flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
-                               borderMode=cv2.BORDER_REPLICATE)
+    else:
+        full = cv2.warpPerspective(gray, m, size, flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+                                   borderMode=cv2.BORDER_REPLICATE)
+    return _downsample(full, scale, (y1 - y0, x1 - x0))
 
 
 def _runs(flags: np.ndarray, run: int) -> np.ndarray:
@@ -357,7 +360,7 @@ def pixel_outlines(gray: np.ndarray, occupied: np.ndarray, reference: FootprintR
     moved = camera.moved
     warp = moved and camera.max_movement_px >= 0.25
     if warp:
-        frame = _in_calibration(_downsample(gray, s, (h, w)), camera, s, (x0, y0, x1, y1))
+        frame = _in_calibration(gray, camera, s, (x0, y0, x1, y1))
     else:
         # the window's blocks only: the same block means as the whole frame's
         frame = _downsample(gray[y0 * s:y1 * s, x0 * s:x1 * s], s, (y1 - y0, x1 - x0))

@@ -507,6 +507,9 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
         # level. Inside the reference outline it is painted with the symbol's ink (where the
         # scratch runs within a pixel or two of the edge, the ink between them is lost in the
         # blur and the opening reads floor there), outside with the opened image.
+        # (each piece inside the symbol with ink beside it: a striped object over a scratched
+        # symbol has its own surface beside its light stripes, which are not painted over)
+        thin = thin & ~_foreign_pieces(patch, thin, inside, v, step)
         scratch = cv2.dilate(thin, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))) > 0
         repaired = patch.copy()
         repaired[scratch] = opened[scratch]
@@ -556,10 +559,10 @@ def repaired_piece_hidden(repaired: np.ndarray, origin: tuple[int, int], points:
     -------
     bool
     """
-    ink = (repaired < threshold).astype(np.uint8)
     # opened as the binarizer opens the frames the calibrated tolerances were measured on (they
     # hold the tips it wears down)
-    ink = cv2.morphologyEx(ink, cv2.MORPH_OPEN, cv2.getStructuringElement(cv2.MORPH_RECT, (3, 3)))
+    ink = cv2.morphologyEx((repaired < threshold).astype(np.uint8), cv2.MORPH_OPEN,
+                           cv2.getStructuringElement(cv2.MORPH_RECT, (3, 3)))
     contours, _ = cv2.findContours(ink, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
     if not contours:
         return True
@@ -635,12 +638,37 @@ def _scratch_like(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, level
         return False
     near = cv2.dilate(thin, np.ones((7, 7), np.uint8)) > 0
     core = cv2.erode(inside, np.ones((5, 5), np.uint8)) > 0
-    beside = near & ~(cv2.dilate(thin, np.ones((3, 3), np.uint8)) > 0) & core
+    # (a scratch's own pixels where the thin-line mask has gaps along it lie on its course)
+    line = thin | _straight_courses(over.astype(np.uint8))
+    beside = near & ~(cv2.dilate(line, np.ones((3, 3), np.uint8)) > 0) & core
     if not beside.any():
         return False
     around = patch[beside].astype(np.float32)
     return (float(median(around)) <= ink + SCRATCH_INK_LEVEL * step
             and float(np.percentile(around, 90)) <= ink + 2 * SCRATCH_INK_LEVEL * step)
+
+
+def _foreign_pieces(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, levels: np.ndarray,
+                    step: float) -> np.ndarray:
+    """The pieces of the thin bright lines (0/1 uint8 ``thin``, (H, W)) inside the symbol
+    (``inside``, 0/1 uint8) with something other than its ink beside them, as a 0/1 uint8 mask.
+    :func:`_scratch_like` judges the lines together; this, each piece on its own."""
+    out = np.zeros_like(thin)
+    # (the pieces inside the symbol: outside it, an obstacle's lines and a scratch may join)
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(thin & inside, connectivity=8)
+    if n <= 2:
+        return out
+    ink = float(np.percentile(levels[0], 25))
+    core = cv2.erode(inside, np.ones((5, 5), np.uint8)) > 0
+    for k in range(1, n):
+        if stats[k, cv2.CC_STAT_AREA] < SCRATCH_SPECK_PX:
+            continue
+        piece = (labels == k).astype(np.uint8)
+        beside = (cv2.dilate(piece, np.ones((7, 7), np.uint8)) > 0) & \
+            ~(cv2.dilate(piece, np.ones((3, 3), np.uint8)) > 0) & core
+        if beside.any() and float(median(patch[beside])) > ink + SCRATCH_INK_LEVEL * step:
+            out[piece > 0] = 1
+    return out
 
 
 def _principal_axes(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -686,7 +714,7 @@ def _straight_length(mask: np.ndarray) -> float:
     _, _, across, along = _principal_axes(mask)
     # (nearly all of them: a stray pixel or two where the line grazes a speck or a corner)
     across = np.abs(across)
-    if np.percentile(across, 97) > SCRATCH_STRAIGHT_PX:
+    if np.percentile(across, 95) > SCRATCH_STRAIGHT_PX:
         return 0.0
     along = along[across <= SCRATCH_STRAIGHT_PX]
     return float(along.max() - along.min())

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any, Iterable, Sequence
 
 import numpy as np
 import shapely
-from shapely.geometry import Point, Polygon
+from shapely.geometry import LineString, Point, Polygon
 from shapely.ops import nearest_points, unary_union
 
 from ..errors import GoalInObstacleError, InputError, OutOfBoundsError, StartInObstacleError
@@ -116,7 +116,8 @@ class PlanningMap:
         return q, True
 
     def _escape(self, p: np.ndarray) -> np.ndarray | None:
-        """Nearest free point just outside the enlarged obstacles around p."""
+        """Nearest free point just outside the enlarged obstacles around p that a straight step
+        from p reaches without entering a real obstacle."""
         vm = self.vmap
         idx = vm.tree.query(Point(p).buffer(2 * self.clearance + self.tolerance), predicate="intersects")
         union = unary_union([vm.polygons[i] for i in idx])
@@ -130,18 +131,53 @@ class PlanningMap:
                     # robot replans from): a step off it, whichever way is free
                     for a in np.linspace(0, 2 * math.pi, 16, endpoint=False):
                         q = p + 10 * self.tolerance * np.array([math.cos(a), math.sin(a)])
-                        if self.in_bounds(q) and not vm.covered(q[None])[0]:
+                        if self.in_bounds(q) and not vm.covered(q[None])[0] and self._step_clear(p, q):
                             return q
                     return None
                 q = q + d / n * 10 * self.tolerance
-                if self.in_bounds(q) and not vm.covered(q[None])[0]:
+                if self.in_bounds(q) and not vm.covered(q[None])[0] and self._step_clear(p, q):
                     return q
+                # In a concave pocket the nearest way out can run through the obstacle itself: the
+                # nearest of the boundary's points that a step reaches in the open
+                return self._escape_around(p, part)
         return None
+
+    def _escape_around(self, p: np.ndarray, part: Polygon) -> np.ndarray | None:
+        """:meth:`_escape`'s way out of ``part`` (the enlarged obstacles' union around p) when the
+        nearest one crosses a real obstacle: boundary points every tenth of the clearance, nearest
+        first."""
+        ring = part.exterior
+        step = max(self.clearance / 10, 10 * self.tolerance)
+        points = np.array([ring.interpolate(t).coords[0] for t in np.arange(0.0, ring.length, step)])
+        order = np.argsort(np.hypot(*(points - p).T))
+        for q in points[order]:
+            d = q - p
+            n = math.hypot(*d)
+            if n <= self.tolerance:
+                continue
+            q = q + d / n * 10 * self.tolerance
+            if self.in_bounds(q) and not self.vmap.covered(q[None])[0] and self._step_clear(p, q):
+                return q
+        return None
+
+    def _step_clear(self, p: np.ndarray, q: np.ndarray) -> bool:
+        """Does the segment p -> q stay out of every real obstacle's interior?"""
+        seg = LineString([p, q])
+        return not any(shapely.relate_pattern(self.obstacles[i], seg, "T********")
+                       for i in self._real_tree.query(seg, predicate="intersects"))
 
     def solve(self, start: Any, goal: Any, *, time_limit: float = 1.0) -> Route:
         """The exact shortest route on this map: :func:`sbplan.planning.aux_corner.solve_aux_corner`.
         Raises a PlanningError."""
         return solve_aux_corner(self, start, goal, time_limit=time_limit)
+
+    def prepare_routes(self) -> bool:
+        """Precompute, once, the corner-to-corner distances every query on this map shares
+        (:meth:`VisibilityMap.prepare_routes`): a query then costs the visibility of its two
+        ends, not a search. Worth it for a map that will answer many queries (the service's);
+        tens of milliseconds on a 50-obstacle floor. False when the map has too many corners
+        (queries stay A*). Adding obstacles drops it."""
+        return self.vmap.prepare_routes()
 
     # -- changes ----------------------------------------------------------------------------------
     def copy(self) -> "PlanningMap":

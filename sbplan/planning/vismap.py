@@ -11,6 +11,7 @@ import copy
 import heapq
 import math
 import threading
+from dataclasses import dataclass
 from typing import Literal, Sequence
 
 import numpy as np
@@ -38,6 +39,14 @@ _CHUNK_PAIRS = 1_000_000
 _SCALAR_MAX_EDGES = 600
 #: Consecutive edges of one polygon per bounding box in _scan's tables.
 _SCAN_EDGES = 8
+#: prepare_routes builds its corner-to-corner table only up to this many active corners: the
+#: all-pairs visibility tests grow as C^2 x E and Floyd-Warshall as C^3 (C = 167 on the service
+#: benchmark's 50-rectangle floor: ~60 ms once), its tables as C^2 (8 bytes x 2 each).
+_TABLE_MAX_CORNERS = 1000
+#: Hidden ends a table query tests one by one before it tests all the rest at once (_table_path).
+#: On the service benchmark's floor (CPU per query, medians): 4: 0.76 ms, 8: 0.54, 16: 0.46,
+#: 32: 0.39, unbounded: 0.39; batches of 3-40 ends per fan instead of single segments: 0.50-1.08.
+_LAZY_TESTS = 32
 
 
 def _cross(ax, ay, bx, by):
@@ -79,6 +88,8 @@ class VisibilityMap:
         self._cactive = np.zeros(0, bool)
         self._vis = np.zeros((0, 0), np.int8)
         self._pcount = np.zeros(0, np.int64)
+        #: prepare_routes' table (_CornerTable) or None; dropped when obstacles are added
+        self._table: _CornerTable | None = None
         self._tree: shapely.STRtree  # set by add_obstacles below
         self.stats = {"segment_pairs": 0, "expansions": 0}
         self._prepare()
@@ -132,6 +143,8 @@ class VisibilityMap:
 
     def _add_obstacles(self, polygons: Sequence[Polygon], _initial: bool) -> None:
         polygons = [p for p in polygons if not p.is_empty]
+        if polygons:
+            self._table = None  # its distances and visibility no longer hold
         if not polygons:
             if _initial:
                 self._tree = shapely.STRtree([])
@@ -563,6 +576,139 @@ class VisibilityMap:
         return out
 
     # -- search -----------------------------------------------------------------------------------
+    def prepare_routes(self) -> bool:
+        """Precompute what every search on this map shares, once: which pairs of active corners
+        see each other and the shortest distances between all corners (with the next corner of
+        each shortest route). ``shortest_path`` then only finds the corners its start and its
+        goal see, and takes the best pair of them: no A*, no visibility test between corners.
+        The same lengths as the A* (both are exact; equal-length routes may differ in the
+        corners they pass).
+
+        Only bitangent pairs enter the table: a shortest route leaves and reaches a corner along
+        a line that cuts into neither corner (the A*'s tangency and tautness filters keep a
+        subset of these). The pairs' visibility is the search's own test (``_fan_blocked``),
+        and fills the same cache.
+
+        Returns False (and builds nothing) above _TABLE_MAX_CORNERS active corners. Adding
+        obstacles drops the table (searches are A* again until the next call).
+        """
+        with self._lock:
+            if self._table is None:
+                act = np.flatnonzero(self._cactive)
+                if len(act) > _TABLE_MAX_CORNERS:
+                    return False
+                self._table = self._corner_table(act)
+            return True
+
+    def _corner_table(self, act: np.ndarray) -> "_CornerTable":
+        n = len(act)
+        X, Y = self._cx[act], self._cy[act]
+        rpx, rpy, rnx, rny = self._rpx[act], self._rpy[act], self._rnx[act], self._rny[act]
+        dist = np.full((n, n), np.inf)
+        np.fill_diagonal(dist, 0.0)
+        vis = self._vis
+        for a in range(n - 1):
+            b = np.arange(a + 1, n)
+            dx, dy = X[b] - X[a], Y[b] - Y[a]
+            d = np.hypot(dx, dy)
+            ok = _not_cut(dx, dy, d, rpx[b], rpy[b], rnx[b], rny[b], self.eps) & \
+                _not_cut(dx, dy, d, rpx[a], rpy[a], rnx[a], rny[a], self.eps)
+            b, d = b[ok], d[ok]
+            u, v = act[a], act[b]
+            row = vis[u, v]
+            unk = row == _UNKNOWN
+            if unk.any():
+                bl = self._fan_blocked(self._cp[u], X[b[unk]], Y[b[unk]])
+                vals = np.where(bl, _BLOCKED, _FREE).astype(np.int8)
+                vis[u, v[unk]] = vals
+                vis[v[unk], u] = vals
+                row[unk] = vals
+            free = row == _FREE
+            dist[a, b[free]] = d[free]
+            dist[b[free], a] = d[free]
+        # Floyd-Warshall, one intermediate corner k at a time over the whole matrix; nxt[i, j]:
+        # the corner after i on the shortest route from i to j.
+        nxt = np.tile(np.arange(n), (n, 1))
+        for k in range(n):
+            via = dist[:, k, None] + dist[k]
+            better = via < dist
+            if better.any():
+                dist = np.where(better, via, dist)
+                nxt = np.where(better, nxt[:, k, None], nxt)
+        return _CornerTable(X, Y, rpx, rpy, rnx, rny, dist, nxt)
+
+    def _table_path(self, t: "_CornerTable", s: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, float]:
+        """shortest_path on prepare_routes' table (the segment s-g already found blocked).
+
+        The route is s, a first corner i, the table's shortest route to a last corner j, g, with
+        s seeing i and g seeing j along lines tangent at the corner (as the A* takes them). Lazy:
+        the pairs in order of their length as if both were seen, each end tested (the one-segment
+        test) when its pair comes first; an end that is hidden drops its row or column. The first
+        pair whose ends are both seen is the shortest. After _LAZY_TESTS hidden ends, the fans
+        (every candidate corner at once) decide the rest."""
+        ds, cs = self._tangent_from(t, s)
+        dg, cg = self._tangent_from(t, g)
+        if len(cg) == 0:
+            raise NoRouteError("no route: the goal is enclosed (no corner sees it)")
+        total = ds[:, None] + t.dist[cs[:, None], cg] + dg
+        ns, ng = len(cs), len(cg)
+        seen_s = np.zeros(ns, bool)
+        seen_g = np.zeros(ng, bool)
+        hidden = 0
+        while total.size:
+            k = int(np.argmin(total))
+            if not math.isfinite(total.flat[k]):
+                break
+            i, j = divmod(k, ng)
+            if not seen_s[i]:
+                if not self.segment_free(s, (t.x[cs[i]], t.y[cs[i]])):
+                    total[i] = np.inf
+                    hidden += 1
+                else:
+                    seen_s[i] = True
+            if seen_s[i] and not seen_g[j]:
+                if not self.segment_free(g, (t.x[cg[j]], t.y[cg[j]])):
+                    total[:, j] = np.inf
+                    hidden += 1
+                else:
+                    seen_g[j] = True
+            if seen_s[i] and seen_g[j]:
+                return self._table_route(t, s, g, int(cs[i]), int(cg[j])), float(total.flat[k])
+            if hidden >= _LAZY_TESTS:
+                # Many hidden ends: test every candidate left at once (the fans).
+                rows = np.flatnonzero(~seen_s & np.isfinite(total).any(1))
+                cols = np.flatnonzero(~seen_g & np.isfinite(total).any(0))
+                total[rows[self._fan_blocked(s, t.x[cs[rows]], t.y[cs[rows]])]] = np.inf
+                total[:, cols[self._fan_blocked(g, t.x[cg[cols]], t.y[cg[cols]])]] = np.inf
+                k = int(np.argmin(total))
+                if not math.isfinite(total.flat[k]):
+                    break
+                i, j = divmod(k, ng)
+                return self._table_route(t, s, g, int(cs[i]), int(cg[j])), float(total.flat[k])
+        if not (~self._fan_blocked(g, t.x[cg], t.y[cg])).any():
+            raise NoRouteError("no route: the goal is enclosed (no corner sees it)")
+        raise NoRouteError("no route: start and goal are not connected (search exhausted)")
+
+    def _tangent_from(self, t: "_CornerTable", p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The distances from p to the table's corners it may reach along a line tangent at the
+        corner, and their indices (seen or not)."""
+        dx, dy = t.x - p[0], t.y - p[1]
+        d = np.hypot(dx, dy)
+        cand = np.flatnonzero(_not_cut(dx, dy, d, t.rpx, t.rpy, t.rnx, t.rny, self.eps))
+        return d[cand], cand
+
+    @staticmethod
+    def _table_route(t: "_CornerTable", s: np.ndarray, g: np.ndarray, a: int, b: int) -> np.ndarray:
+        """s, the table's shortest route from corner a to corner b, g: shape (M, 2)."""
+        path = [a]
+        nxt = t.nxt
+        while path[-1] != b:
+            path.append(int(nxt[path[-1], b]))
+        wp = np.empty((len(path) + 2, 2))
+        wp[0], wp[-1] = s, g
+        wp[1:-1, 0], wp[1:-1, 1] = t.x[path], t.y[path]
+        return wp
+
     def shortest_path(self, start: XY, goal: XY, *, should_stop=None,
                       straight_blocked: bool = False) -> tuple[np.ndarray, float]:
         """Euclidean-shortest route from start to goal, shape (M, 2) ``(x, y)``, and its length.
@@ -583,6 +729,8 @@ class VisibilityMap:
         g = np.asarray(goal, float)
         if not straight_blocked and self.segment_free(s, g):
             return np.stack([s, g]), float(np.hypot(*(g - s)))
+        if self._table is not None:
+            return self._table_path(self._table, s, g)
         C = len(self._cp)
         S, G = C, C + 1
         eps = self.eps
@@ -591,13 +739,7 @@ class VisibilityMap:
         rpx, rpy, rnx, rny = self._rpx, self._rpy, self._rnx, self._rny
 
         def not_cut(dx, dy, n):
-            # Tangent at the target: the segment from a source (d = target - source, |d| = n) must
-            # not cut into the target corner's interior cone, i.e. its two edges must not lie
-            # strictly on opposite sides of d (sides beyond eps, as with unit d).
-            a = dx * rpy - dy * rpx
-            b = dx * rny - dy * rnx
-            tol = eps * n
-            return ~((np.maximum(a, b) > tol) & (np.minimum(a, b) < -tol))
+            return _not_cut(dx, dy, n, rpx, rpy, rnx, rny, eps)
 
         # Goal row: corners that see the goal (the last segment, tangent at the corner).
         dxg, dyg = X - g[0], Y - g[1]
@@ -700,6 +842,34 @@ class VisibilityMap:
                 heapq.heappush(heap, (fv, gv, v))
         self.stats["expansions"] += expansions
         raise NoRouteError("no route: start and goal are not connected (search exhausted)")
+
+
+def _not_cut(dx, dy, n, rpx, rpy, rnx, rny, eps) -> np.ndarray:
+    """Tangent at a corner: a segment along d (|d| = n) through the corner, whose edges are the
+    vectors rp and rn from it, must not cut into the corner's interior cone, i.e. its two edges
+    must not lie strictly on opposite sides of d (sides beyond eps, as with unit d). A property
+    of the line: the same for d and -d."""
+    a = dx * rpy - dy * rpx
+    b = dx * rny - dy * rnx
+    tol = eps * n
+    return ~((np.maximum(a, b) > tol) & (np.minimum(a, b) < -tol))
+
+
+@dataclass(frozen=True)
+class _CornerTable:
+    """prepare_routes' table over the C active corners: their positions ``x``, ``y`` (C,), their
+    edge vectors (the tangency test), ``dist`` (C, C) the shortest distances between them
+    (inf: not connected) and ``nxt`` (C, C) the corner after i on the shortest route from i to
+    j. Never modified: copies of the map share it."""
+
+    x: np.ndarray
+    y: np.ndarray
+    rpx: np.ndarray
+    rpy: np.ndarray
+    rnx: np.ndarray
+    rny: np.ndarray
+    dist: np.ndarray
+    nxt: np.ndarray
 
 
 def _ring_edges(polygons: Sequence[Polygon]):

@@ -4,19 +4,26 @@ Threads, and why:
 
 - **the detection thread** (one): a :class:`~sbplan.detection.Detector` keeps the camera's last
   pose to register the next frame, so frames are decoded and detected one at a time, in order.
-- **the state thread** (one): the only writer of :attr:`Service.state`. It makes a detection
-  current (and replans the routes it blocks), plans, replans and deletes routes. Each change
-  builds a new immutable :class:`~sbplan.service.state.State` and swaps it in with one assignment,
-  so a reader (any thread) sees the state before or after a change, never half of it; a change
-  that reads the state and writes it back cannot interleave with another, because they all run
-  here, one after the other. It also keeps planning on one thread: ``sbplan.plan``'s map cache and
-  a map's visibility cache are filled lazily.
-- the caller's threads (the event loop, a live source's reader) only read ``state`` and wait on
-  these two. The CPU-heavy work (decoding, detection, planning) never runs on the event loop.
+- **the state thread** (one): makes a detection current (and replans the routes it blocks),
+  plans routes (unless planning processes do), replans and deletes them. Each change builds a
+  new immutable :class:`~sbplan.service.state.State` and swaps it in with one assignment, so a
+  reader (any thread) sees the state before or after a change, never half of it. Every change
+  holds the service's write lock, so a change that reads the state and writes it back cannot
+  interleave with another. The state thread takes the lock for each of its changes; the event
+  loop takes it only without waiting, to record a route a planning process planned (a few dozen
+  microseconds, no planning: handing that to the state thread cost more than doing it, the two
+  threads passing the GIL back and forth), and leaves it to the state thread when a change is
+  running. Planning on one map stays on one thread: a map's visibility cache fills lazily.
+- **the planning processes** (``planner_processes``, :mod:`.workers`): plan ``POST /routes``
+  queries on every core, each with its own copy of the current frame's maps; they keep no state
+  that matters.
+- the caller's threads (the event loop, a live source's reader) read ``state`` and wait on the
+  threads and processes above. The CPU-heavy work (decoding, detection, planning, building a
+  map) never runs on the event loop.
 
-Events (new detections, route changes, rejected frames) are numbered here, on the state thread,
-in the order they happen, serialized to JSON text once, and handed to the listeners (the
-WebSocket broker) as :class:`OutEvent`.
+Events (new detections, route changes, rejected frames) are numbered by the writer that makes
+the change, in the order they happen, serialized to JSON text once, and handed to the listeners
+(the WebSocket broker) as :class:`OutEvent`.
 
 A live source hooks in with :meth:`process_frame` (an image in, detection and commit done) or,
 when it detects itself, :meth:`commit_detection`; its own events go out through :meth:`publish`.
@@ -45,6 +52,7 @@ from ..planning import PlanningMap, detection_obstacles, plan
 from . import images, models
 from .errors import BusyError, NoFrameError, UnknownRouteError, status_and_code
 from .state import RouteRecord, Snapshot, State, obstacle_key, route_model
+from .workers import PlannerPool
 
 
 #: Planning maps kept (one per frame and robot size): routes of a few robot sizes on the current
@@ -92,11 +100,14 @@ class Service:
     max_routes : int
         Routes kept; beyond it the least recently changed one is dropped.
     limits : Limits
+    planner_processes : int
+        Processes that plan ``POST /routes`` queries (:mod:`.workers`), one per core is best; 0
+        (default): the state thread plans them. Replans always run on the state thread.
     """
 
     def __init__(self, calibration: Calibration, *, use: str = DEFAULT_OBSTACLE_MODEL, planner: str = "aux-corner",
                  time_limit: float = 1.0, max_routes: int = 256, limits: Limits = Limits(),
-                 detector: Detector | None = None):
+                 detector: Detector | None = None, planner_processes: int = 0):
         if use not in OBSTACLE_MODELS:
             raise InputError(f"use: expected one of {', '.join(OBSTACLE_MODELS)}, got {use!r}")
         if max_routes < 1:
@@ -114,13 +125,16 @@ class Service:
         self._state = State()
         self._detect_pool = concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="sbplan-detect")
         self._state_pool = concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="sbplan-state")
-        self._state_thread: int | None = None
-        self._state_pool.submit(self._claim_state_thread).result()
+        # Held by every change (see the module's docstring); _writer: the thread holding it.
+        self._write_lock = threading.Lock()
+        self._writer: int | None = None
         self._route_ids = itertools.count(1)
         self._maps: OrderedDict[tuple[int, float, float], PlanningMap] = OrderedDict()  # state thread only
         self._seq = 0
         self._pending = 0
         self._listeners: list[Callable[[OutEvent], None]] = []
+        # route requests (POST /routes) planned in processes of their own: see .workers
+        self._planners = PlannerPool(planner_processes) if planner_processes > 0 else None
 
     # -- reading ----------------------------------------------------------------------------------
     @property
@@ -144,7 +158,8 @@ class Service:
 
     # -- events -----------------------------------------------------------------------------------
     def add_listener(self, listener: Callable[[OutEvent], None]) -> None:
-        """``listener(event)`` is called on the state thread for every event; it must not block."""
+        """``listener(event)`` is called for every event by the writer that made it (the state
+        thread, or the event loop recording a route); it must not block."""
         self._listeners.append(listener)
 
     def remove_listener(self, listener: Callable[[OutEvent], None]) -> None:
@@ -153,7 +168,7 @@ class Service:
 
     def publish(self, model: type[BaseModel], owner: str | None = None, **fields: Any) -> concurrent.futures.Future:
         """Number and send an event of class ``model`` from any thread (a live source's own events)."""
-        return self._state_pool.submit(self._emit, model, owner, fields)
+        return self._state_submit(self._emit, model, owner, fields)
 
     def _emit(self, model: type[BaseModel], owner: str | None, fields: dict) -> None:
         self._check_thread()
@@ -192,7 +207,7 @@ class Service:
                 return
             # submitted from this thread, in detection order: frames are made current in order
             try:
-                commit = self._state_pool.submit(self._commit, staged)
+                commit = self._state_submit(self._commit, staged)
             except RuntimeError as exc:  # shutting down
                 done.set_exception(exc)
                 return
@@ -223,7 +238,7 @@ class Service:
                          received: float | None = None) -> tuple[Snapshot, list[str]]:
         """Make a detection made elsewhere (a live source's) current; blocks until done."""
         staged = self._stage(detection, source=source, name=name, received=time.time() if received is None else received)
-        return self._state_pool.submit(self._commit, staged).result()
+        return self._state_submit(self._commit, staged).result()
 
     def _stage(self, detection: Detection, *, source: str, name: str | None, received: float) -> dict:
         """The work of making a snapshot that needs no state (runs on the detection thread)."""
@@ -246,7 +261,7 @@ class Service:
         info = dict(frame=frame, received=staged["received"], source=staged["source"], name=staged["name"])
         snap = Snapshot(frame=frame, model=models.State.model_construct(**dict(checked), **info, age_s=0.0), **staged)
         changed: list[RouteRecord] = []
-        routes = dict(old.routes)
+        routes = old.routes_copy()
         if old.snapshot is None or snap.keys != old.snapshot.keys:
             for rid, rec in old.routes.items():
                 new = self._check_route(rec, snap)
@@ -281,17 +296,37 @@ class Service:
 
     # -- routes -----------------------------------------------------------------------------------
     async def create_route(self, request: models.RouteRequest) -> models.Route:
-        return await asyncio.wrap_future(self._state_pool.submit(self._create_route, request))
+        pool = self._planners
+        if pool is None or not pool.alive:
+            return await asyncio.wrap_future(self._state_submit(self._create_route, request))
+        # planned in a planning process, recorded on the state thread
+        snap = self.snapshot()
+        radius = self._radius(request.robot_radius)
+        route = await pool.plan(snap.frame, snap.obstacles, snap.bounds, radius=radius, margin=float(request.margin),
+                                start=request.start, goal=request.goal, planner=self.planner,
+                                time_limit=self.time_limit)
+        # Recording it is quick (no planning, unless a newer frame came meanwhile): done here
+        # when no change is running, else on the state thread. Handing it over costs more than
+        # the record itself: the two threads then pass the GIL back and forth.
+        if self._write_lock.acquire(blocking=False):
+            try:
+                if self._state.snapshot is snap:
+                    self._writer = threading.get_ident()
+                    return self._add_route(request, snap, radius, route)
+            finally:
+                self._writer = None
+                self._write_lock.release()
+        return await asyncio.wrap_future(self._state_submit(self._add_route, request, snap, radius, route))
 
     async def replan_route(self, rid: str, request: models.ReplanRequest) -> models.Route:
-        return await asyncio.wrap_future(self._state_pool.submit(self._replan_route, rid, request))
+        return await asyncio.wrap_future(self._state_submit(self._replan_route, rid, request))
 
     async def delete_route(self, rid: str) -> None:
-        await asyncio.wrap_future(self._state_pool.submit(self._delete_route, rid))
+        await asyncio.wrap_future(self._state_submit(self._delete_route, rid))
 
     def set_position(self, rid: str, position: tuple[float, float]) -> concurrent.futures.Future:
         """Record where a route's robot is (the next replan because of a new obstacle starts there)."""
-        return self._state_pool.submit(self._set_position, rid, position)
+        return self._state_submit(self._set_position, rid, position)
 
     def _radius(self, value: float | None) -> float:
         if value is not None:
@@ -314,6 +349,9 @@ class Service:
         pmap = self._maps.get(key)
         if pmap is None:
             pmap = self._maps[key] = PlanningMap(snap.obstacles, robot_radius=radius, margin=margin, bounds=snap.bounds)
+            # the service asks many routes of one map: its corner-to-corner table once (tens of
+            # ms on a 50-obstacle floor), then a query costs the visibility of its two ends
+            pmap.prepare_routes()
             while len(self._maps) > MAPS_KEPT:
                 self._maps.popitem(last=False)
         else:
@@ -322,22 +360,36 @@ class Service:
 
     def _create_route(self, req: models.RouteRequest) -> models.Route:
         self._check_thread()
-        old = self._state
         snap = self.snapshot()
         radius = self._radius(req.robot_radius)
         route = self._plan(snap, (), req.start, req.goal, radius, req.margin)
+        return self._add_route(req, snap, radius, route)
+
+    def _add_route(self, req: models.RouteRequest, snap: Snapshot, radius: float, route: Any) -> models.Route:
+        """Keep a route planned on ``snap`` (state thread). Planned in a planning process, it may
+        come back after a newer frame was made current, whose check of the routes it missed:
+        it is checked here against that frame (and replanned if a new obstacle blocks it)."""
+        self._check_thread()
+        old = self._state
         rid = f"r{next(self._route_ids)}"
         model = route_model(rid=rid, owner=req.owner, version=1, frame=snap.frame, reason="created", route=route,
                             start=req.start, goal=req.goal, position=req.start, robot_radius=radius,
                             margin=req.margin, extras=0, planner=self.planner)
         rec = RouteRecord(model=model, route=route, goal=(req.goal[0], req.goal[1]), position=(req.start[0], req.start[1]),
                           robot_radius=radius, margin=float(req.margin), extras=(), planned_on=snap.keys)
-        routes = dict(old.routes)
-        routes[rid] = rec
+        current = old.snapshot
+        later = None
+        if current is not snap and current is not None:
+            later = self._check_route(rec, current)
+        routes = old.routes_copy()
+        routes[rid] = rec if later is None else later
         while len(routes) > self.max_routes:
             del routes[next(iter(routes))]
         self._state = old.with_routes(routes)
         self._emit(models.RouteEvent, rec.owner, dict(route=model))
+        if later is not None and later.model is not model:
+            self._emit(models.RouteEvent, later.owner, dict(route=later.model))
+            return later.model
         return model
 
     def _replan_route(self, rid: str, req: models.ReplanRequest) -> models.Route:
@@ -374,7 +426,7 @@ class Service:
 
     def _put(self, rec: RouteRecord) -> None:
         old = self._state
-        routes = dict(old.routes)
+        routes = old.routes_copy()
         routes.pop(rec.id, None)
         routes[rec.id] = rec
         self._state = old.with_routes(routes)
@@ -383,7 +435,7 @@ class Service:
         self._check_thread()
         rec = self.route(rid)
         old = self._state
-        routes = dict(old.routes)
+        routes = old.routes_copy()
         del routes[rid]
         self._state = old.with_routes(routes)
         self._emit(models.RouteDeletedEvent, rec.owner, dict(id=rid, owner=rec.owner))
@@ -392,22 +444,33 @@ class Service:
         self._check_thread()
         rec = self.route(rid)
         old = self._state
-        routes = dict(old.routes)
+        routes = old.routes_copy()
         routes[rid] = rec.evolve(position=tuple(position))
         self._state = old.with_routes(routes)
 
     # -- threads ----------------------------------------------------------------------------------
-    def _claim_state_thread(self) -> None:
-        self._state_thread = threading.get_ident()
+    def _state_submit(self, fn: Callable, *args: Any) -> concurrent.futures.Future:
+        """Run a change on the state thread, as the writer."""
+        return self._state_pool.submit(self._as_writer, fn, *args)
+
+    def _as_writer(self, fn: Callable, *args: Any) -> Any:
+        with self._write_lock:
+            self._writer = threading.get_ident()
+            try:
+                return fn(*args)
+            finally:
+                self._writer = None
 
     def _check_thread(self) -> None:
-        # every write runs on the state thread: that is what makes read-modify-write safe
-        assert threading.get_ident() == self._state_thread, "state changed outside the state thread"
+        # every write holds the write lock: that is what makes read-modify-write safe
+        assert threading.get_ident() == self._writer, "state changed without the write lock"
 
     def close(self) -> None:
         """Stop the worker threads (work already submitted finishes first)."""
         self._detect_pool.shutdown(wait=True)
         self._state_pool.shutdown(wait=True)
+        if self._planners is not None:
+            self._planners.close()
 
 
 @dataclass(frozen=True)

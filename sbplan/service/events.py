@@ -56,7 +56,8 @@ class Broker:
         self.last_seq = 0
 
     def listener(self, event: OutEvent) -> None:
-        """The service's listener (state thread): hand the event to the event loop."""
+        """The service's listener (the state thread, or the event loop itself): hand the event to
+        the event loop."""
         with contextlib.suppress(RuntimeError):  # the loop closed: the server is stopping
             self.loop.call_soon_threadsafe(self._dispatch, event)
 
