@@ -420,6 +420,58 @@ def test_tracker_keeps_ids_through_moves_and_splits():
     assert [c.kind for c in ch] == ["left", "moved", "appeared"]
 
 
+
+def test_unchanged_groups_keep_their_obstacles():
+    from sbplan.detection.obstacles import Obstacle
+    from sbplan.live.tracking import reusable_obstacles
+
+    def ob(cells):
+        pts = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0]])
+        return Obstacle(0, cells, pts, np.vstack([pts, pts[:1]]))
+
+    occ = np.zeros((4, 6), bool)
+    occ[0, 0:2] = occ[3, 5] = occ[2, 2] = True
+    stays, grows, new = ob([(0, 0), (0, 1)]), ob([(3, 5)]), None
+    occ[2, 5] = True  # (3, 5) grows to (2, 5)
+    kept, todo = reusable_obstacles(occ, [stays, grows])
+    assert kept == [stays]  # the same object, its outline untouched
+    assert sorted(zip(*np.nonzero(todo))) == [(2, 2), (2, 5), (3, 5)]  # the new one and the grown one
+    # a group two obstacles share, an obstacle the caller refuses, one without cells: outlined anew
+    assert reusable_obstacles(occ, [ob([(0, 0)]), ob([(0, 1)])])[0] == []
+    assert reusable_obstacles(occ, [stays], keep=lambda o: False)[0] == []
+    assert reusable_obstacles(occ, [stays, ob([])])[0] == []
+    # an obstacle that shrank (its cell left) is outlined anew
+    occ[0, 1] = False
+    assert reusable_obstacles(occ, [stays])[0] == []
+
+
+def test_an_obstacle_that_stays_keeps_its_outline_while_others_change(stream):
+    """Only the obstacles whose cells changed are outlined again on the frame of a flip."""
+    w = Watcher(stream["folder"], stream["cal"], hysteresis=H)
+    outlines: dict[int, dict[int, np.ndarray]] = {}  # frame -> obstacle id -> outline, after frames with events
+    events = []
+    for e in w.events():
+        events.append(e)
+        if e["frame"] is not None and w.state.frame == e["frame"]:
+            outlines[e["frame"]] = {o.id: o.outline_px for o in w.state.obstacles}
+    kinds = [(e["type"], e["obstacle"]["id"], e["frame"]) for e in events if e["type"].startswith("obstacle_")]
+    first = [f for k, i, f in kinds if k == "obstacle_appeared"]
+    assert len(first) == 2  # the one that stays, then the one that slides
+    stays = next(i for k, i, f in kinds if k == "obstacle_appeared" and f == first[0])
+    # another obstacle appeared: the one that stays kept its outline (the same array: not outlined
+    # again on a frame where it may look different)
+    assert outlines[first[1]][stays] is outlines[first[0]][stays]
+    moves = [e for e in events if e["type"] == "obstacle_moved"]
+    assert moves and any(e["cells_added"] for e in moves)
+    for e in moves:
+        # the obstacle whose cells changed got a new outline, the one the state now holds
+        assert e["obstacle"]["outline_px"] != e["previous"]["outline_px"]
+        assert np.allclose(outlines[e["frame"]][e["obstacle"]["id"]], e["obstacle"]["outline_px"], atol=1e-3)
+    # when the slider leaves, the one that stays is not outlined again (the camera stands still by then)
+    left = next(f for k, i, f in kinds if k == "obstacle_left")
+    assert outlines[left][stays] is outlines[moves[-1]["frame"]][stays]
+
+
 # -- events out -------------------------------------------------------------------------------------
 def test_every_event_follows_the_schema(stream, avi_events, folder_events, paused_events):
     import jsonschema

@@ -7,7 +7,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from typing import Callable, Sequence
 
+import cv2
 import numpy as np
 
 from ..detection.obstacles import Obstacle
@@ -78,11 +80,20 @@ class CellHysteresis:
         self.stable = np.zeros(shape, bool)
         self._count = np.zeros(shape, np.int64)
         self._since = np.full(shape, np.nan)
+        self._pending = False  # some cell seen changed and not flipped yet
 
     def update(self, occupied: np.ndarray, time_ms: float) -> np.ndarray:
         """One frame's occupied cells (rows, cols) bool at ``time_ms``; returns the cells whose
         stable state flipped (rows, cols) bool."""
         differ = occupied != self.stable
+        if not differ.any():
+            # the usual frame: nothing pending restarts, nothing flips
+            if self._pending:
+                self._count[:] = 0
+                self._since[:] = np.nan
+                self._pending = False
+            return differ
+        self._pending = True
         self._count = np.where(differ, self._count + 1, 0)
         self._since = np.where(differ, np.where(np.isnan(self._since), time_ms, self._since), np.nan)
         h = self.hysteresis
@@ -170,3 +181,59 @@ class ObstacleTracker:
         changes.sort(key=lambda c: (order[c.kind], c.obstacle.id))
         self.obstacles = out
         return out, changes
+
+
+def reusable_obstacles(occupied: np.ndarray, obstacles: Sequence[Obstacle], *,
+                       keep: Callable[[Obstacle], bool] | None = None) -> tuple[list[Obstacle], np.ndarray]:
+    """Which obstacles of the last stable state still stand as they were, and which cells need
+    outlining anew.
+
+    The occupied cells fall into groups of touching cells (8-connected, as the footprint stage
+    looks one cell around them). A group whose cells are exactly one old obstacle's cells keeps
+    that obstacle: outlining it again on a new frame would only redo the same work. Every other
+    group is outlined anew: new, grown, shrunk, merged or split ones, and those the footprint had
+    parted into several obstacles (touching objects, or one object a bad frame cut in two: a
+    second look settles which). Obstacles the footprint left without a cell cannot be placed in a
+    group, so then everything is outlined anew.
+
+    Parameters
+    ----------
+    occupied : ndarray of shape (rows, cols), bool
+        The new stable occupied cells, ``[row, col]``.
+    obstacles : sequence of Obstacle
+        The last stable state's obstacles (their ``cells`` are ``(row, col)``).
+    keep : callable, optional
+        ``keep(obstacle)`` False forbids reusing an obstacle (e.g. one outlined before the camera
+        moved); its group is outlined anew.
+
+    Returns
+    -------
+    kept : list of Obstacle
+        The obstacles to keep as they are.
+    outline : ndarray of shape (rows, cols), bool
+        The occupied cells of the other groups.
+    """
+    occupied = np.asarray(occupied, bool)
+    if not occupied.any() or not obstacles or any(not o.cells for o in obstacles):
+        return [], occupied.copy()
+    owner = np.full(occupied.shape, -1, np.int64)
+    for k, ob in enumerate(obstacles):
+        r, c = np.asarray(ob.cells, np.int64).reshape(-1, 2).T
+        if (r < 0).any() or (r >= owner.shape[0]).any() or (c < 0).any() or (c >= owner.shape[1]).any():
+            return [], occupied.copy()
+        owner[r, c] = k
+    n, labels = cv2.connectedComponents(occupied.astype(np.uint8), connectivity=8)
+    kept: list[Obstacle] = []
+    outline = occupied.copy()
+    for label in range(1, n):
+        group = labels == label
+        olds = np.unique(owner[group])
+        if len(olds) != 1 or olds[0] < 0:
+            continue  # a cell no obstacle held (the group grew), or several obstacles
+        if not np.array_equal(owner == olds[0], group):
+            continue  # its obstacle held cells outside the group now (it shrank or split)
+        if keep is not None and not keep(obstacles[olds[0]]):
+            continue
+        kept.append(obstacles[olds[0]])
+        outline &= ~group
+    return kept, outline

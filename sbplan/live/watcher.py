@@ -28,7 +28,7 @@ from ..errors import CameraMotionError, DetectionError, InputError, PlanningErro
 from ..planning import plan, replan
 from .reader import Frame, FrameReader, Notice
 from .sources import Source, open_source
-from .tracking import CellHysteresis, Change, Hysteresis, ObstacleTracker
+from .tracking import CellHysteresis, Change, Hysteresis, ObstacleTracker, reusable_obstacles
 
 if TYPE_CHECKING:
     from ..detection.obstacles import Obstacle
@@ -225,6 +225,8 @@ class Watcher:
         self.cells = CellHysteresis(shape, hysteresis)
         pitch = float(np.mean(cal.grid.pitch_px))
         self.tracker = ObstacleTracker(reach_px=1.5 * pitch)
+        # the camera pose each stable obstacle was outlined under, by its cells
+        self._outline_poses: dict[tuple, np.ndarray] = {}
         self._state = LiveState(None, None, np.zeros(shape, bool))
         self._stop_reason: str | None = None
         self._running = threading.Event()
@@ -440,8 +442,9 @@ class Watcher:
                 h, w = image.shape[:2]
                 self._thumb = thumb if thumb is not None else cv2.resize(
                     image, (w // THUMB_BLOCK, h // THUMB_BLOCK), interpolation=cv2.INTER_LINEAR)
-        # the camera: report a movement beyond the tolerance, and registration coming back
-        moved_px = self._pose_change(motion.matrix)
+        # the camera: report a movement beyond the tolerance, and registration coming back (a
+        # reused frame has the last frame's pose, which was reported or within the tolerance)
+        moved_px = 0.0 if reused is not None and not self._camera_lost else self._pose_change(motion.matrix)
         if self._camera_lost or moved_px > self.camera_tolerance_px:
             self._camera_lost = False
             self._reported_pose = motion.matrix
@@ -450,10 +453,7 @@ class Watcher:
         flipped = self.cells.update(raw, frame.time_ms)
         changes: list[Change] = []
         if flipped.any():
-            stable = self.cells.stable
-            occupancy = self.detector.mapper.occupancy_image(cal.grid, stable, tuple(cal.image_shape))
-            # each obstacle's outline by the detector's footprint stage, on the frame the cells flipped on
-            found_obs = self.detector.obstacles(as_gray(image), stable, occupancy, motion)
+            found_obs = self._obstacles(image, motion)
             _, changes = self.tracker.update(found_obs)
             for ch in changes:
                 fields: dict[str, Any] = {"obstacle": ch.obstacle.to_json()}
@@ -471,11 +471,44 @@ class Watcher:
         self._finish(frame, cpu0, events, raw=raw, motion=motion)
         yield from events
 
-    def _pose_change(self, matrix: np.ndarray) -> float:
-        """How far ``matrix`` moves the image's corners from where the last reported pose put them."""
+    def _obstacles(self, image: np.ndarray, motion: CameraMotion) -> list[Obstacle]:
+        """The obstacles of the stable cells, after a flip: each one's outline by the detector's
+        footprint stage on this frame, except those whose group of cells did not change since they
+        were outlined under (within ``camera_tolerance_px``) the same camera pose, which are kept
+        as they were (:func:`~sbplan.live.tracking.reusable_obstacles`): a flip in one corner of
+        the floor costs the footprints of that corner only."""
+        cal = self.calibration
+        stable = self.cells.stable
+        poses = self._outline_poses
+
+        def same_pose(ob: Obstacle) -> bool:
+            pose = poses.get(tuple(ob.cells))
+            return pose is not None and self._corner_shift(pose, motion.matrix) <= self.camera_tolerance_px
+
+        kept, todo = reusable_obstacles(stable, self.tracker.obstacles, keep=same_pose)
+        found = list(kept)
+        if todo.any():
+            occupancy = self.detector.mapper.occupancy_image(cal.grid, todo, tuple(cal.image_shape))
+            fresh = self.detector.obstacles(as_gray(image), todo, occupancy, motion)
+            found += fresh
+        else:
+            fresh = []
+        self._outline_poses = {**{tuple(o.cells): poses[tuple(o.cells)] for o in kept},
+                               **{tuple(o.cells): motion.matrix for o in fresh}}
+        # in reading order of their top-left cells, as the detector numbers them (the tracker's ties)
+        far = (1 << 30, 1 << 30)
+        found.sort(key=lambda o: tuple(o.cells[0]) if o.cells else far)
+        return found
+
+    def _corner_shift(self, a: np.ndarray, b: np.ndarray) -> float:
+        """How far apart the poses ``a`` and ``b`` put the image's corners, pixels."""
         h, w = self.calibration.image_shape
         corners = np.array([[0, 0], [w - 1, 0], [w - 1, h - 1], [0, h - 1]], float)
-        return float(np.abs(apply(matrix, corners) - apply(self._reported_pose, corners)).max())
+        return float(np.abs(apply(a, corners) - apply(b, corners)).max())
+
+    def _pose_change(self, matrix: np.ndarray) -> float:
+        """How far ``matrix`` moves the image's corners from where the last reported pose put them."""
+        return self._corner_shift(matrix, self._reported_pose)
 
     def _finish(self, frame: Frame, cpu0: float, events: list[Event], *, raw: np.ndarray | None = None,
                 motion: CameraMotion | None = None, camera_error: str | None = None) -> None:
