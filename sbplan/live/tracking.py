@@ -216,10 +216,11 @@ def reusable_obstacles(occupied: np.ndarray, obstacles: Sequence[Obstacle], *,
     occupied = np.asarray(occupied, bool)
     if not occupied.any() or not obstacles or any(not o.cells for o in obstacles):
         return [], occupied.copy()
-    owner = np.full(occupied.shape, -1, np.int64)
+    rows, cols = occupied.shape
+    owner = np.full((rows, cols), -1, np.int64)
     for k, ob in enumerate(obstacles):
         r, c = np.asarray(ob.cells, np.int64).reshape(-1, 2).T
-        if (r < 0).any() or (r >= owner.shape[0]).any() or (c < 0).any() or (c >= owner.shape[1]).any():
+        if (r < 0).any() or (r >= rows).any() or (c < 0).any() or (c >= cols).any():
             return [], occupied.copy()
         owner[r, c] = k
     n, labels = cv2.connectedComponents(occupied.astype(np.uint8), connectivity=8)
