@@ -61,7 +61,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--queries", type=int, default=400, help="distinct route queries (default 400)")
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     parser.add_argument("--planner-processes", type=int, default=None, metavar="N",
-                        help="the server's planning processes (default: sbplan serve's, one per core)")
+                        help="the server's planning processes (default: sbplan serve's, one per core but one)")
     parser.add_argument("--json", action="store_true", help="print the results as JSON")
 
 
@@ -311,7 +311,7 @@ def measure(*, clients=(1, 8, 32), paced=((32, 5.0),), seconds: float = 3.0, war
             "seconds": seconds, "warmup": warmup, "repeats": repeats, "queries": queries, "seed": seed,
             "cpus": os.cpu_count(), "load_average": list(os.getloadavg()), "levels": levels,
             "python": sys.version.split()[0], "event_loop": _loop_kind(),
-            "planner_processes": "default (one per core)" if planner_processes is None else planner_processes}
+            "planner_processes": "default (one per core but one)" if planner_processes is None else planner_processes}
 
 
 def _loop_kind() -> str:

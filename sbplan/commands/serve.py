@@ -42,7 +42,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--max-routes", type=int, default=256, metavar="N",
                         help="routes kept; the least recently changed is dropped beyond (default 256)")
     parser.add_argument("--planner-processes", type=int, default=None, metavar="N",
-                        help="processes planning route requests (default: one per core; 0: on the service's "
+                        help="processes planning route requests (default: one per core but one, at least one; 0: on the service's "
                              "state thread)")
     parser.add_argument("--max-body-mb", type=float, default=32.0, metavar="MB", help="largest frame upload (default 32)")
     parser.add_argument("--max-pixels", type=int, default=40_000_000, metavar="N",
@@ -66,6 +66,7 @@ def run(args: argparse.Namespace) -> int:
     from ..service.app import create_app
     from ..service.server import address, bind, is_loopback, make_server
     from ..service.sources import open_source
+    from ..service.workers import default_processes
 
     token = args.token or os.environ.get(TOKEN_ENV) or None
     if token is None and not is_loopback(args.host):
@@ -76,7 +77,7 @@ def run(args: argparse.Namespace) -> int:
                          "python3 -c 'import secrets; print(secrets.token_urlsafe())'")
     if args.max_body_mb <= 0 or args.max_pixels <= 0:
         raise InputError("--max-body-mb and --max-pixels must be > 0")
-    processes = (os.cpu_count() or 1) if args.planner_processes is None else args.planner_processes
+    processes = default_processes() if args.planner_processes is None else args.planner_processes
     if processes < 0:
         raise InputError(f"--planner-processes: must be >= 0, got {processes}")
     from .detect import with_georeference

@@ -119,7 +119,7 @@ class Service:
         Routes kept; beyond it the least recently changed one is dropped.
     limits : Limits
     planner_processes : int
-        Processes that plan ``POST /routes`` queries (:mod:`.workers`), one per core is best; 0
+        Processes that plan ``POST /routes`` queries (:mod:`.workers`), one per core but one is best (:func:`.workers.default_processes`); 0
         (default): the state thread plans them. Replans always run on the state thread.
     """
 
