@@ -531,14 +531,14 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
 
 
 def repaired_piece_hidden(repaired: np.ndarray, origin: tuple[int, int], points: np.ndarray, inward: np.ndarray,
-                          allowance: np.ndarray, threshold: float, *, shift: float = 0.0) -> bool:
+                          allowance: np.ndarray, threshold: float) -> bool:
     """Has a symbol whose scratches were painted over (:func:`scratches_repaired`) lost a piece of
     its reference outline? :func:`hidden_piece`'s test on the repaired window.
 
     The repaired window is thresholded at ``threshold`` (a grey level between the symbol's ink and
     the floor) and opened with a 3-pixel square; each reference point is moved into the symbol by
-    its allowance plus the common ``shift`` (pixels the found outline lies inside the reference's,
-    :func:`inward_shift`) and must find ink there, or lie within that distance of the ink's outline.
+    its allowance and must find ink there, or lie within that distance of the ink's outline (the
+    threshold halfway to the floor puts the outline where the reference's is: no common shift).
 
     Parameters
     ----------
@@ -552,8 +552,6 @@ def repaired_piece_hidden(repaired: np.ndarray, origin: tuple[int, int], points:
         Each point's allowance in the frame's pixels (calibrated tolerance plus the margin).
     threshold : float
         Grey level below which a pixel is ink.
-    shift : float
-        How far (pixels) the symbol's outline lies inside the reference's on the whole.
 
     Returns
     -------
@@ -567,7 +565,7 @@ def repaired_piece_hidden(repaired: np.ndarray, origin: tuple[int, int], points:
     if not contours:
         return True
     pts = np.asarray(points, np.float64) - np.asarray(origin, np.float64)
-    depth = np.maximum(np.asarray(allowance, np.float64) + shift, 0.5)
+    depth = np.maximum(np.asarray(allowance, np.float64), 0.5)
     q = (pts + (depth - _PIXEL_CENTRE_BIAS)[:, None] * inward).astype(np.float32)
     shallow = cv2.remap(ink, q[None, :, 0], q[None, :, 1], cv2.INTER_LINEAR,
                         borderMode=cv2.BORDER_CONSTANT)[0] == 0
@@ -636,11 +634,8 @@ def _scratch_like(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, level
     darker = SCRATCH_PIECES_FLOOR_LEVEL if in_pieces else SCRATCH_FLOOR_LEVEL
     if float(median(patch[over])) < floor - darker * step:
         return False
-    near = cv2.dilate(thin, np.ones((7, 7), np.uint8)) > 0
-    core = cv2.erode(inside, np.ones((5, 5), np.uint8)) > 0
     # (a scratch's own pixels where the thin-line mask has gaps along it lie on its course)
-    line = thin | _straight_courses(over.astype(np.uint8))
-    beside = near & ~(cv2.dilate(line, np.ones((3, 3), np.uint8)) > 0) & core
+    beside = _beside(thin, thin | _straight_courses(over.astype(np.uint8)), _core(inside))
     if not beside.any():
         return False
     around = patch[beside].astype(np.float32)
@@ -659,16 +654,26 @@ def _foreign_pieces(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, lev
     if n <= 2:
         return out
     ink = float(np.percentile(levels[0], 25))
-    core = cv2.erode(inside, np.ones((5, 5), np.uint8)) > 0
+    core = _core(inside)
     for k in range(1, n):
         if stats[k, cv2.CC_STAT_AREA] < SCRATCH_SPECK_PX:
             continue
         piece = (labels == k).astype(np.uint8)
-        beside = (cv2.dilate(piece, np.ones((7, 7), np.uint8)) > 0) & \
-            ~(cv2.dilate(piece, np.ones((3, 3), np.uint8)) > 0) & core
+        beside = _beside(piece, piece, core)
         if beside.any() and float(median(patch[beside])) > ink + SCRATCH_INK_LEVEL * step:
             out[piece > 0] = 1
     return out
+
+
+def _core(inside: np.ndarray) -> np.ndarray:
+    """The symbol's interior (0/1 uint8 ``inside``) away from its blurred edge, bool."""
+    return cv2.erode(inside, np.ones((5, 5), np.uint8)) > 0
+
+
+def _beside(lines: np.ndarray, own: np.ndarray, core: np.ndarray) -> np.ndarray:
+    """The pixels of ``core`` within 3 pixels of ``lines`` but more than one from ``own`` (the
+    lines' own pixels; 0/1 uint8 masks): what lies beside a thin line, bool."""
+    return (cv2.dilate(lines, np.ones((7, 7), np.uint8)) > 0) & ~(cv2.dilate(own, np.ones((3, 3), np.uint8)) > 0) & core
 
 
 def _principal_axes(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
