@@ -124,44 +124,45 @@ class PlanningMap:
         for part in getattr(union, "geoms", [union]):
             if part.intersects(Point(p)):
                 q = np.asarray(nearest_points(part.boundary, Point(p))[0].coords[0])
-                d = q - p
-                n = math.hypot(*d)
-                if n <= self.tolerance:
+                if math.hypot(*(q - p)) <= self.tolerance:
                     # p is on the boundary (a route running along an obstacle's side, where a
                     # robot replans from): a step off it, whichever way is free
                     for a in np.linspace(0, 2 * math.pi, 16, endpoint=False):
                         q = p + 10 * self.tolerance * np.array([math.cos(a), math.sin(a)])
-                        if self.in_bounds(q) and not vm.covered(q[None])[0] and self._step_clear(p, q):
+                        if self._reachable(p, q):
                             return q
                     return None
-                q = q + d / n * 10 * self.tolerance
-                if self.in_bounds(q) and not vm.covered(q[None])[0] and self._step_clear(p, q):
-                    return q
+                out = self._step_out(p, q)
+                if out is not None:
+                    return out
                 # In a concave pocket the nearest way out can run through the obstacle itself: the
-                # nearest of the boundary's points that a step reaches in the open
-                return self._escape_around(p, part)
+                # nearest of the boundary's points (every tenth of the clearance) that a step
+                # reaches in the open
+                ring = part.exterior
+                step = max(self.clearance / 10, 10 * self.tolerance)
+                points = np.array([ring.interpolate(t).coords[0] for t in np.arange(0.0, ring.length, step)])
+                for q in points[np.argsort(np.hypot(*(points - p).T))]:
+                    out = self._step_out(p, q)
+                    if out is not None:
+                        return out
+                return None
         return None
 
-    def _escape_around(self, p: np.ndarray, part: Polygon) -> np.ndarray | None:
-        """:meth:`_escape`'s way out of ``part`` (the enlarged obstacles' union around p) when the
-        nearest one crosses a real obstacle: boundary points every tenth of the clearance, nearest
-        first."""
-        ring = part.exterior
-        step = max(self.clearance / 10, 10 * self.tolerance)
-        points = np.array([ring.interpolate(t).coords[0] for t in np.arange(0.0, ring.length, step)])
-        order = np.argsort(np.hypot(*(points - p).T))
-        for q in points[order]:
-            d = q - p
-            n = math.hypot(*d)
-            if n <= self.tolerance:
-                continue
-            q = q + d / n * 10 * self.tolerance
-            if self.in_bounds(q) and not self.vmap.covered(q[None])[0] and self._step_clear(p, q):
-                return q
-        return None
+    def _step_out(self, p: np.ndarray, q: np.ndarray) -> np.ndarray | None:
+        """``q``, a point of the enlarged obstacles' boundary, moved a little further from ``p``
+        into the free space, when a straight step from ``p`` reaches it (:meth:`_reachable`)."""
+        d = q - p
+        n = math.hypot(*d)
+        if n <= self.tolerance:
+            return None
+        q = q + d / n * 10 * self.tolerance
+        return q if self._reachable(p, q) else None
 
-    def _step_clear(self, p: np.ndarray, q: np.ndarray) -> bool:
-        """Does the segment p -> q stay out of every real obstacle's interior?"""
+    def _reachable(self, p: np.ndarray, q: np.ndarray) -> bool:
+        """Is ``q`` free, within the bounds, and the segment p -> q out of every real obstacle's
+        interior?"""
+        if not self.in_bounds(q) or self.vmap.covered(q[None])[0]:
+            return False
         seg = LineString([p, q])
         return not any(shapely.relate_pattern(self.obstacles[i], seg, "T********")
                        for i in self._real_tree.query(seg, predicate="intersects"))
