@@ -519,14 +519,17 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
         # the floor): its straight course on from the line it left inside does.
         beside = cv2.dilate(thin | _straight_courses(thin & inside), cv2.getStructuringElement(
             cv2.MORPH_ELLIPSE, (2 * SCRATCH_WIDTH_PX + 3,) * 2)) > 0
-        paint = (scratch | (beside & (patch > median(v[0]) + step / 2))) & (inside > 0)
-        repaired[paint] = np.uint8(np.clip(median(v[0]), 0, 255))
+        ink = float(median(v[0]))
+        # (halfway from the ink to the floor: the painted symbol's edge, and its test's threshold)
+        halfway = ink + step / 2
+        paint = (scratch | (beside & (patch > halfway))) & (inside > 0)
+        repaired[paint] = np.uint8(np.clip(ink, 0, 255))
         kept = edge_kept(repaired, x[i:i + 1] - x0, y[i:i + 1] - y0, factors[i:i + 1])
         limit = np.broadcast_to(np.asarray(max_break), (len(outlines),))[i:i + 1]
         gaps = np.broadcast_to(np.asarray(gap), (len(outlines),))[i:i + 1]
         out[i] = intact_edges(kept, max_break=limit, gap=gaps, probed=factors[i:i + 1] < EDGE_UNPROBED)[0]
         if out[i] and piece_hidden is not None:
-            out[i] = not piece_hidden(i, repaired, (x0, y0), float(median(v[0])) + step / 2)
+            out[i] = not piece_hidden(i, repaired, (x0, y0), halfway)
     return out
 
 
