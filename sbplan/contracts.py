@@ -162,6 +162,19 @@ class Binarizer(Stage):
         """
         return bands.stack(self.binarize(gray), fill=False)
 
+    def locality(self) -> tuple[int, int] | None:
+        """How far the mask at a pixel looks, for detection that re-examines part of a frame.
+
+        ``(reach, step)`` promises that :meth:`binarize` (and :meth:`binarize_bands`) of a crop of
+        an image give, at every pixel of the crop farther than ``reach`` pixels (rows and columns)
+        from a side of the crop that is not the image's own side, what they give there on the whole
+        image, for any crop whose corners lie on multiples of ``step`` pixels of an image whose
+        sides are multiples of ``step``. None (the default) promises nothing: a global threshold,
+        or not known. A live watch then detects every changed frame whole
+        (:meth:`sbplan.detection.Detector.find_cells_local`).
+        """
+        return None
+
 
 class ContourExtractor(Stage):
     """Finds every closed boundary (outer boundaries and holes) of a binary image."""

@@ -66,6 +66,19 @@ class LocalThresholdBinarizer(Binarizer):
         level = self.local_level(small, window)
         return [level[a:b] for a, b in rows]
 
+    def level_reach(self, window: int) -> int:
+        """How many reduced pixels away :meth:`local_level` looks for a window of ``window``: the
+        whole window by default (safe for any window filter); subclasses that know better say so."""
+        return window
+
+    def locality(self) -> tuple[int, int]:
+        """The local level looks :meth:`level_reach` reduced pixels away, each reduced pixel is
+        ``f`` image pixels wide (a crop must start on one's corner), and the opening adds its half
+        side (erosion, then dilation)."""
+        window, f = self._window_factor()
+        opening = 3 if self.opening == -1 else self.opening
+        return f * (self.level_reach(window) + 1) + 2 * (opening // 2), f
+
     def binarize(self, gray: np.ndarray) -> np.ndarray:
         gray, thr, f = self._threshold(gray)
         return self._open(_below(gray, thr, f)).view(bool)
@@ -119,11 +132,16 @@ class LocalThresholdBinarizer(Binarizer):
 
     def _reduced(self, gray: np.ndarray) -> tuple[np.ndarray, int, int]:
         """The reduced image, the window in its pixels, and the reduction factor."""
+        window, f = self._window_factor()
+        return _reduce(gray, f), window, f
+
+    def _window_factor(self) -> tuple[int, int]:
+        """The window in reduced pixels, and the reduction factor."""
         window = self.window or 31
         # The local level varies slowly: computing it on a reduced image and enlarging it again
         # costs a fraction of the full-size filter.
         f = max(1, min(self.downscale, window // 5))
-        return _reduce(gray, f), max(3, int(round(window / f))), f
+        return max(3, int(round(window / f))), f
 
     def _from_level(self, level: np.ndarray) -> np.ndarray:
         # OpenCV takes a number as src2 (a scalar); its stubs accept arrays only

@@ -42,6 +42,11 @@ class BackgroundBinarizer(LocalThresholdBinarizer):
         if not 0.0 < self.erosion <= 1.0:
             raise InputError(f"erosion: must be in (0, 1], got {self.erosion}")
 
+    def level_reach(self, window: int) -> int:
+        # the dilation's square reaches window // 2 either way (OpenCV's anchor), the erosion's
+        # its own side // 2
+        return window // 2 + self._erosion_side(window) // 2
+
     def local_level(self, small: np.ndarray, window: int) -> np.ndarray:
         brightest, shrink = self._dilated(small, window)
         return cv2.erode(brightest, shrink, borderType=cv2.BORDER_REPLICATE)
@@ -65,8 +70,11 @@ class BackgroundBinarizer(LocalThresholdBinarizer):
     def _dilated(self, small: np.ndarray, window: int) -> tuple[np.ndarray, np.ndarray]:
         """The dilation of ``small`` by the window, and the erosion's square."""
         brightest = _max_filter(small, window)
-        side = max(1, int(round(window * self.erosion)))
+        side = self._erosion_side(window)
         return brightest, cv2.getStructuringElement(cv2.MORPH_RECT, (side, side))
+
+    def _erosion_side(self, window: int) -> int:
+        return max(1, int(round(window * self.erosion)))
 
 
 def _max_filter(image: np.ndarray, size: int) -> np.ndarray:

@@ -32,5 +32,8 @@ class LocalMeanBinarizer(LocalThresholdBinarizer):
     min_contrast: int = option(6, "grey levels below the local mean that ink must be at the least")
     downscale: int = option(4, "the local mean is computed on an image this many times smaller (speed)")
 
+    def level_reach(self, window: int) -> int:
+        return window // 2  # the box's anchor is its centre
+
     def local_level(self, small: np.ndarray, window: int) -> np.ndarray:
         return cv2.blur(small, (window, window), borderType=cv2.BORDER_REPLICATE)

@@ -11,7 +11,7 @@ import collections.abc
 import logging
 import os
 import time
-from dataclasses import replace
+from dataclasses import dataclass, fields, replace
 from typing import Any, Unpack
 
 import numpy as np
@@ -128,6 +128,8 @@ class Detector:
         # (sbplan.detection.registration); the last estimate seeds the next frame's
         self.register = bool(register)
         self.motion: CameraMotion = CameraMotion.none()
+        # the last frame's cells, what find_cells_local starts from (None: no frame, or it failed)
+        self._last: _LastCells | None = None
         self._warned_at: float | None = None  # time.monotonic() of the last movement warning logged
         # what the frames' grey-level centres are compared with, by flat cell number
         self._registration_centres = (cal.registration_centres_px if cal.registration_centres_px is not None
@@ -218,6 +220,7 @@ class Detector:
                 f"image is {gray.shape[1]}x{gray.shape[0]} but the calibration is for "
                 f"{cal.image_shape[1]}x{cal.image_shape[0]}; calibrate on a reference from the same camera")
         hint = self.motion if self.register else CameraMotion.none()
+        self._last = None  # (until this frame's cells are known: find_cells_local has nothing to start from)
         bands = self._bands_for(hint.matrix)
         for attempt in range(2):
             frame = self._symbols(gray, bands, lap)
@@ -241,19 +244,47 @@ class Detector:
             bands = self._bands_for(motion.matrix)
         self.motion = motion
         binary, polygons, hit, centres, areas, _, _ = frame
-        work = self.work
-        rows, cols = cal.grid.shape
-        found = np.zeros((rows, cols), bool)
-        matched = np.zeros((0, 2))
-        candidates = np.zeros((0, 2))
+        last = _LastCells.empty(cal.grid.rows * cal.grid.cols)
+        last.take(*self._accepted(polygons, hit, centres, areas, binary, bands, motion), centres)
+        whole = self._rescue(gray, last, motion, None)
+        lap("match")
+        timings["total"] = (time.perf_counter() - t0) * 1e3
+        # once while the camera stays moved (and again every WARN_REPEAT_S): a stream's detector
+        # sees the same movement on every frame, and its log is not the place for 30 lines a second
+        # (each result still carries the movement and its warning)
+        now = time.monotonic()
+        if not motion.warning:
+            self._warned_at = None
+        elif self._warned_at is None or now - self._warned_at >= WARN_REPEAT_S:
+            self._warned_at = now
+            log.warning(motion.warning, extra={"data": {"camera": motion.to_json()}})
+        self._last = last
+        return self._cell_detection(last, whole, timings, motion)
+
+    def _accepted(self, polygons: PolygonBatch, hit: np.ndarray, centres: np.ndarray, areas: np.ndarray,
+                  binary: np.ndarray, bands: RowBands | None, motion: CameraMotion, *,
+                  origin: np.ndarray | None = None, only: np.ndarray | None = None
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Which of the outlines the matcher took for the symbol (``polygons[hit]``, centres and
+        areas in frame pixels) are their cells' symbols, whole: the cell (flat index, -1 off the
+        grid) of each, whether it passed the outline checks, and its centre in the calibration's
+        pixels. The binary image and the outlines are in working pixels, stacked by ``bands``, of
+        a crop whose corner is ``origin`` (x, y) in the working image; with ``only`` (flat cells,
+        bool), the outlines of other cells are not checked (not passed)."""
+        cal, work = self.calibration, self.work
+        cols = cal.grid.cols
+        flat = np.full(len(hit), -1, np.int64)
+        ok = np.zeros(len(hit), bool)
         moved = motion.moved
         if len(hit):
             # centres in the calibration's pixels, where the cells and their reference outlines are
             centres = motion.to_calibration(centres) if moved else centres
             cells = cal.grid.assign(centres)
-            flat = cells[:, 0] * cols + cells[:, 1]  # negative off the grid
+            flat = np.maximum(cells[:, 0] * cols + cells[:, 1], -1)  # -1 off the grid
             # idx: the hits still taken for their cell's symbol, narrowed by each test below
             idx = np.flatnonzero(flat >= 0)
+            if only is not None:
+                idx = idx[only[flat[idx]]]
             # A camera sees each cell's symbol at one size (times the registered zoom). Light and
             # focus scale every symbol alike; what remains is a symbol grown or shrunk on its own:
             # partly hidden, or not the symbol at all.
@@ -269,6 +300,8 @@ class Detector:
                 xy = np.stack([z.real, z.imag], axis=-1).reshape(-1, 2)
                 if bands is not None:
                     xy = bands.to_full(xy)
+                if origin is not None:
+                    xy = xy + origin
                 xy = work.to_frame(xy)
                 if moved:
                     xy = motion.to_calibration(xy)
@@ -290,6 +323,8 @@ class Detector:
                         lin = motion.matrix[:2, :2] / motion.scale
                         inward = inward @ lin.T
                     points = work.to_work(points)
+                    if origin is not None:
+                        points = points - origin
                     if bands is not None:
                         points = bands.to_stacked(points.reshape(-1, 2)).reshape(points.shape)
                     # the binary image and the outlines are in working pixels
@@ -297,67 +332,91 @@ class Detector:
                                           self.allowance[cell] * (motion.scale / work.factor), binary)
                     if hidden.any():
                         idx = idx[~hidden]
-            found.ravel()[flat[idx]] = True
-            ok = np.zeros(len(hit), bool)
             ok[idx] = True
-            matched, candidates = centres[ok], centres[~ok]
-        matched_count = int(found.sum())
-        rescued = 0
-        if self._edge_x is not None and not found.all():
-            # the cells called occupied whose symbol's edge still shows all around in the grey image,
-            # but for short breaks where scratches cross it
-            missing = np.flatnonzero(~found.ravel())
-            ex, ey = self._edge_x[missing], self._edge_y[missing]
-            if moved:
-                q = motion.to_frame(np.stack([ex, ey], axis=-1))
-                ex, ey = q[..., 0].astype(np.float32), q[..., 1].astype(np.float32)
+        return flat, ok, centres
+
+    def _rescue(self, gray: np.ndarray, last: "_LastCells", motion: CameraMotion, only: np.ndarray | None) -> np.ndarray:
+        """The cells (flat indices) matching did not find whose symbol's edge the grey image still
+        shows all around, but for short breaks where scratches cross it: the edge check of
+        ``last``'s unmatched cells (of the ``only`` ones, the others' results kept), its per-cell
+        results stored in ``last``.
+
+        Raises
+        ------
+        DetectionError
+            The edge check would call more cells free than matching found (the matcher does not fit).
+        """
+        cal = self.calibration
+        if self._edge_x is None:
+            return np.zeros(0, np.int64)
+        todo = ~last.found if only is None else ~last.found & only
+        every = slice(None) if only is None else only
+        last.plain[every] = last.intact[every] = last.broken[every] = False
+        last.repaired[every] = -1
+        missing = np.flatnonzero(todo)
+        if len(missing):
+            ex, ey = self._probes(missing, motion)
             factors = self._edge_factors[missing]
             kept = edge_kept(gray, ex, ey, factors)
-            limit, gap = self._scratch_points[missing], self._break_gap[missing]
-            intact = intact_edges(kept, max_break=limit, gap=gap, probed=factors < EDGE_UNPROBED)
+            intact = intact_edges(kept, max_break=self._scratch_points[missing], gap=self._break_gap[missing],
+                                  probed=factors < EDGE_UNPROBED)
+            last.intact[missing] = intact
             # ... or shows it once the thin scratches across it are painted over (wear), asked of
             # a few cells only: an obstacle over a symbol breaks much of its edge, scratches a few
             # points, and a floor that is mostly occupied is not worn symbols
-            broken = np.flatnonzero(~intact & ((~kept).mean(axis=1) <= SCRATCH_BROKEN_SHARE))
+            last.broken[missing] = ~intact & ((~kept).mean(axis=1) <= SCRATCH_BROKEN_SHARE)
             # (the symbols whose edge shows at every point: what a matcher that does not fit the
             # floor leaves unmatched; scratched symbols break their edge here and there)
-            plain = int(kept.all(axis=1).sum())
-            if 0 < len(broken) <= SCRATCH_CELLS:
-                outlines = [cal.symbol_polygons[c] for c in missing[broken]]
-                if moved:
+            last.plain[missing] = kept.all(axis=1)
+        broken = np.flatnonzero(last.broken)
+        rescued = last.intact
+        if 0 < len(broken) <= SCRATCH_CELLS:
+            # (a cell's repair reads its own window only: one kept from the last frame stands)
+            need = broken[last.repaired[broken] < 0]
+            if len(need):
+                ex, ey = self._probes(need, motion)
+                outlines = [cal.symbol_polygons[c] for c in need]
+                if motion.moved:
                     outlines = [motion.to_frame(o) for o in outlines]
-                intact[broken] = scratches_repaired(gray, outlines, ex[broken], ey[broken],
-                                                    self._edge_factors[missing[broken]],
-                                                    max_break=limit[broken], gap=gap[broken],
-                                                    piece_hidden=self._piece_hidden(missing[broken], motion))
-            whole = missing[intact]
-            rescued = len(whole)
-            if plain > max(matched_count, RESCUE_MIN):
-                # The edge check rescues symbols the binary image spoiled; it does not find them.
-                # Deciding more cells than matching did, it would be answering alone. (Only the
-                # symbols whose edge is unbroken count: on a worn floor with many objects the
-                # scratched symbols it calls whole can outnumber the ones matched.)
-                raise DetectionError(
-                    f"the matcher ({self.matcher.name}) took only {matched_count} of {cal.symbols_expected} symbols "
-                    f"for the symbol, and the grey-level edge check would call {plain} more free: the matcher or "
-                    "its threshold does not fit this floor (a broken or swapped matcher, a calibration made with "
-                    "another one, or symbols worn past recognition); recalibrate with the matcher you detect with")
-            if rescued:
-                found.ravel()[whole] = True
-                matched = np.concatenate([matched, self._cell_centres[whole]])
-        lap("match")
-        timings["total"] = (time.perf_counter() - t0) * 1e3
-        # once while the camera stays moved (and again every WARN_REPEAT_S): a stream's detector
-        # sees the same movement on every frame, and its log is not the place for 30 lines a second
-        # (each result still carries the movement and its warning)
-        now = time.monotonic()
-        if not motion.warning:
-            self._warned_at = None
-        elif self._warned_at is None or now - self._warned_at >= WARN_REPEAT_S:
-            self._warned_at = now
-            log.warning(motion.warning, extra={"data": {"camera": motion.to_json()}})
-        return CellDetection(~found, matched_count, matched, candidates, timings, gray.shape, motion,
-                             symbols_rescued=rescued)
+                last.repaired[need] = scratches_repaired(gray, outlines, ex, ey, self._edge_factors[need],
+                                                         max_break=self._scratch_points[need],
+                                                         gap=self._break_gap[need],
+                                                         piece_hidden=self._piece_hidden(need, motion))
+            rescued = rescued | (last.broken & (last.repaired == 1))
+        matched_count = int(last.found.sum())
+        plain = int(last.plain.sum())
+        if plain > max(matched_count, RESCUE_MIN):
+            # The edge check rescues symbols the binary image spoiled; it does not find them.
+            # Deciding more cells than matching did, it would be answering alone. (Only the
+            # symbols whose edge is unbroken count: on a worn floor with many objects the
+            # scratched symbols it calls whole can outnumber the ones matched.)
+            raise DetectionError(
+                f"the matcher ({self.matcher.name}) took only {matched_count} of {cal.symbols_expected} symbols "
+                f"for the symbol, and the grey-level edge check would call {plain} more free: the matcher or "
+                "its threshold does not fit this floor (a broken or swapped matcher, a calibration made with "
+                "another one, or symbols worn past recognition); recalibrate with the matcher you detect with")
+        return np.flatnonzero(rescued)
+
+    def _probes(self, cells: np.ndarray, motion: CameraMotion) -> tuple[np.ndarray, np.ndarray]:
+        """The edge probes ``(x, y)`` of ``cells`` (flat indices) where ``motion`` puts them, (n, EDGE_SAMPLES) each."""
+        ex, ey = self._edge_x[cells], self._edge_y[cells]  # type: ignore[index]
+        if motion.moved:
+            q = motion.to_frame(np.stack([ex, ey], axis=-1))
+            ex, ey = q[..., 0].astype(np.float32), q[..., 1].astype(np.float32)
+        return ex, ey
+
+    def _cell_detection(self, last: "_LastCells", whole: np.ndarray, timings: dict[str, float],
+                        motion: CameraMotion) -> CellDetection:
+        """The result of the cells ``last`` holds, with the cells ``whole`` rescued by the edge check."""
+        found = last.found.copy()
+        found[whole] = True
+        matched = last.hit_centres[last.hit_ok]
+        if len(whole):
+            matched = np.concatenate([matched, self._cell_centres[whole]])
+        rows, cols = self.calibration.grid.shape
+        return CellDetection(~found.reshape(rows, cols), int(last.found.sum()), matched,
+                             last.hit_centres[~last.hit_ok], timings, tuple(self.calibration.image_shape), motion,
+                             symbols_rescued=len(whole))
 
     def _piece_hidden(self, cells: np.ndarray, motion: CameraMotion):
         """The whole-symbol test :func:`scratches_repaired` asks of the repaired symbols of
@@ -379,7 +438,11 @@ class Detector:
         binary image, the polygons, the indices of those the matcher took for the symbol, their
         centres and areas in the frame's pixels, their centres in working pixels, and the working
         image."""
-        image = self.work.reduce(gray)
+        return self._symbols_in(self.work.reduce(gray), bands, lap)
+
+    def _symbols_in(self, image: np.ndarray, bands: RowBands | None, lap, origin: np.ndarray | None = None) -> tuple:
+        """:meth:`_symbols` of a working image, or of a crop of one whose corner is ``origin``
+        (x, y) (the centres are then the whole frame's)."""
         # every stage is called through call_stage: a plugin's exception or broken result is a
         # StageError naming it, checked by one comparison (or one sum) per call
         if bands is not None:
@@ -421,6 +484,8 @@ class Detector:
                     centres, areas = centres[hit], areas[hit]
                 if bands is not None:
                     centres = bands.to_full(centres)
+                if origin is not None:
+                    centres = centres + origin
         lap("describe")
         return binary, polygons, hit, self.work.to_frame(centres), areas * self.work.area, centres, image
 
@@ -566,6 +631,40 @@ def frame_diagnosis(gray: np.ndarray) -> str | None:
         return ("no floor in view: the frame is noise (neighbouring pixels are unrelated); the camera's signal is "
                 "broken: check the camera and its cable, then detect again")
     return None
+
+
+@dataclass(eq=False)
+class _LastCells:
+    """A frame's cells as :meth:`Detector.find_cells` decided them, by flat cell number, with what
+    the edge check found of each: what :meth:`Detector.find_cells_local` keeps of the cells it does
+    not look at again, and the outlines taken for the symbol (``hit_*``), one row each."""
+
+    found: np.ndarray  # (n,) bool: the symbol matched and passed the outline checks
+    plain: np.ndarray  # (n,) bool: not found, its edge shows at every point
+    intact: np.ndarray  # (n,) bool: not found, its edge shows all around but for short breaks
+    broken: np.ndarray  # (n,) bool: not found nor intact, a candidate for the scratch repair
+    repaired: np.ndarray  # (n,) int8: the scratch repair's answer, -1 where it was not asked
+    hit_cells: np.ndarray  # (m,) int64: the flat cell of each outline, -1 off the grid
+    hit_ok: np.ndarray  # (m,) bool: taken for its cell's symbol
+    hit_centres: np.ndarray  # (m, 2): (x, y), calibration pixels
+    hit_frame: np.ndarray  # (m, 2): (x, y), frame pixels
+
+    @classmethod
+    def empty(cls, n: int) -> "_LastCells":
+        z = np.zeros((0, 2))
+        return cls(np.zeros(n, bool), np.zeros(n, bool), np.zeros(n, bool), np.zeros(n, bool), np.full(n, -1, np.int8),
+                   np.zeros(0, np.int64), np.zeros(0, bool), z, z)
+
+    def take(self, cells: np.ndarray, ok: np.ndarray, centres: np.ndarray, frame: np.ndarray) -> None:
+        """Add outlines (their cells, whether taken, centres in calibration and frame pixels)."""
+        self.found[cells[ok]] = True
+        self.hit_cells = np.concatenate([self.hit_cells, cells])
+        self.hit_ok = np.concatenate([self.hit_ok, ok])
+        self.hit_centres = np.concatenate([self.hit_centres, centres.reshape(-1, 2)])
+        self.hit_frame = np.concatenate([self.hit_frame, frame.reshape(-1, 2)])
+
+    def copy(self) -> "_LastCells":
+        return _LastCells(*(np.array(getattr(self, f.name)) for f in fields(self)))
 
 
 class _Picked(collections.abc.Sequence):
