@@ -57,6 +57,14 @@ WARN_REPEAT_S = 60.0
 #: Symbols whose grey-level centres refine the registration (spread over the grid): 24 pin it to
 #: about 0.05 px on the renderer's scenes at half the cost of all 50.
 REGISTRATION_SYMBOLS = 24
+#: find_cells_local gives way to find_cells when its crops would cover more than this share of the
+#: frame (a camera bump, a change everywhere): the whole frame then costs less, and is registered.
+LOCAL_SHARE = 0.5
+#: What a cell's checks read around its symbol's bounding box, in symbol sizes and at least
+#: LOCAL_WINDOW_PX pixels: the outline checks stay within the outline tolerance (about 3 px), the
+#: edge probes within EDGE_DEPTH_PX, the scratch repair's window within 9 px.
+LOCAL_WINDOW = 0.5
+LOCAL_WINDOW_PX = 12.0
 #: The edge check may rescue at most as many cells as the matcher found symbols (or this many, on a
 #: mostly covered floor): more, and it would be deciding the cells alone.
 RESCUE_MIN = 4
@@ -117,7 +125,8 @@ class Detector:
         # frames are reduced by the calibration's working factor before their contours are traced
         # (sbplan.detection.working); bands, binary image and contours are in working pixels
         self.work = WorkScale(cal.work_scale, cal.image_shape)
-        self._band_margin = max(BAND_MARGIN_PX, BAND_MARGIN * float(np.sqrt(np.median(areas)))) if len(areas) else 0.0
+        self._symbol_size = float(np.sqrt(np.median(areas))) if len(areas) else 0.0
+        self._band_margin = max(BAND_MARGIN_PX, BAND_MARGIN * self._symbol_size) if len(areas) else 0.0
         # each symbol's bounding box corners, whose rows the bands must hold (cell, 4 corners, xy)
         self._symbol_corners = np.array([[[p[:, 0].min(), p[:, 1].min()], [p[:, 0].max(), p[:, 1].min()],
                                           [p[:, 0].min(), p[:, 1].max()], [p[:, 0].max(), p[:, 1].max()]]
@@ -130,6 +139,7 @@ class Detector:
         self.motion: CameraMotion = CameraMotion.none()
         # the last frame's cells, what find_cells_local starts from (None: no frame, or it failed)
         self._last: _LastCells | None = None
+        self._kept_reads: np.ndarray | None = None
         self._warned_at: float | None = None  # time.monotonic() of the last movement warning logged
         # what the frames' grey-level centres are compared with, by flat cell number
         self._registration_centres = (cal.registration_centres_px if cal.registration_centres_px is not None
@@ -221,6 +231,7 @@ class Detector:
                 f"{cal.image_shape[1]}x{cal.image_shape[0]}; calibrate on a reference from the same camera")
         hint = self.motion if self.register else CameraMotion.none()
         self._last = None  # (until this frame's cells are known: find_cells_local has nothing to start from)
+        self._kept_reads = None
         bands = self._bands_for(hint.matrix)
         for attempt in range(2):
             frame = self._symbols(gray, bands, lap)
@@ -260,6 +271,129 @@ class Detector:
             log.warning(motion.warning, extra={"data": {"camera": motion.to_json()}})
         self._last = last
         return self._cell_detection(last, whole, timings, motion)
+
+    def find_cells_local(self, image: ImageInput, changed: Any) -> CellDetection | None:
+        """:meth:`find_cells` of a frame that differs from the last one only inside ``changed``:
+        the cells near the change looked at again, the others' results and the camera's pose kept.
+
+        The last frame's cells are kept for every cell whose symbol (and what its checks read)
+        lies farther than the binarizer's reach (:meth:`~sbplan.contracts.Binarizer.locality`)
+        from every changed box. The others are decided as :meth:`find_cells` decides them, under
+        the last frame's pose, on crops of the frame around them: each crop is binarized,
+        traced and matched alone, and the crops reach so far beyond those cells that the binary
+        image is the whole frame's wherever the cells' outlines and checks read it. The edge
+        check's whole-frame rules (how many cells the scratch repair looks at, rescuing no more
+        cells than matching found) are applied to the whole frame, with the kept cells' results.
+
+        Parameters
+        ----------
+        image : ndarray of shape (H, W) or (H, W, 3)
+            The frame, of the calibration's size.
+        changed : sequence of (x0, y0, x1, y1)
+            Boxes of the frame (pixels, x1 and y1 excluded) outside which it equals the last frame
+            this detector looked at (:meth:`find_cells` or this method).
+
+        Returns
+        -------
+        CellDetection or None
+            None when it cannot give what :meth:`find_cells` would: no last frame (or its
+            detection failed), a binarizer that promises no locality, crops that would cover more
+            than ``LOCAL_SHARE`` of the frame (a camera bump, a wide change: :meth:`find_cells`
+            then costs less and registers the frame), an outline taken for a symbol that crosses
+            its crop's edge, or the edge check refusing (the caller's :meth:`find_cells` then says
+            why). The pose is the last frame's (``camera``); the centres are the same points as
+            :meth:`find_cells` gives, possibly in another order.
+        """
+        last = self._last
+        locality = getattr(self.binarizer, "locality", None)
+        reach_step = locality() if locality is not None else None
+        if last is None or reach_step is None:
+            return None
+        timings: dict[str, float] = {}
+        t0 = t = time.perf_counter()
+
+        def lap(name: str) -> None:
+            nonlocal t
+            now = time.perf_counter()
+            timings[name] = timings.get(name, 0.0) + (now - t) * 1e3
+            t = now
+
+        gray = as_gray(image, name="image")
+        work, motion = self.work, self.motion
+        reach, step = (int(v) for v in reach_step)
+        wh, ww = work.work_shape
+        if gray.shape != tuple(self.calibration.image_shape) or wh % step or ww % step:
+            return None
+        boxes = np.asarray(changed, dtype=np.float64).reshape(-1, 4)
+        if not len(boxes):
+            return None
+        windows = self._windows(motion)
+        # the changed boxes in working pixels, grown by how far the binarizer carries a change
+        lo = np.floor(work.to_work(boxes[:, :2])) - reach - 1
+        hi = np.ceil(work.to_work(boxes[:, 2:] - 1)) + reach + 2
+        near = ((windows[:, None, 0] < hi[None, :, 0]) & (windows[:, None, 2] > lo[None, :, 0]) &
+                (windows[:, None, 1] < hi[None, :, 1]) & (windows[:, None, 3] > lo[None, :, 1])).any(axis=1)
+        crops = _merged(windows[near], reach, step, (ww, wh))
+        if sum((x1 - x0) * (y1 - y0) for x0, y0, x1, y1 in crops) > LOCAL_SHARE * ww * wh:
+            return None
+        bands = self._bands_for(motion.matrix)
+        whole_image = work.reduce(gray)
+        new = last.copy()
+        only = np.zeros(len(windows), bool)
+        for x0, y0, x1, y1 in crops:
+            # where the crop's binary image is the whole frame's: its inner part, and its sides on the frame's
+            zone = (x0 + reach if x0 else 0, y0 + reach if y0 else 0, x1 - reach if x1 < ww else ww,
+                    y1 - reach if y1 < wh else wh)
+            inside = ((windows[:, 0] >= zone[0]) & (windows[:, 1] >= zone[1]) & (windows[:, 2] <= zone[2]) &
+                      (windows[:, 3] <= zone[3]))
+            only |= inside
+            new.found[inside] = False
+            # what the last frame had of these cells, and its candidates off the grid in the zone, go
+            fx = work.to_work(new.hit_frame)
+            gone = (only[new.hit_cells] & (new.hit_cells >= 0)) | ((new.hit_cells < 0) & _within(fx, zone))
+            new.drop(gone)
+            crop_bands = _crop_bands(bands, y0, y1, x1 - x0) if bands is not None else None
+            if bands is not None and crop_bands is None:
+                continue  # no symbol row in this crop
+            origin = np.array([x0, y0], np.float64)
+            binary, polygons, hit, centres, areas, _, _ = self._symbols_in(whole_image[y0:y1, x0:x1], crop_bands, lap,
+                                                                             origin)
+            cells, ok, cal_centres = self._accepted(polygons, hit, centres, areas, binary, crop_bands, motion,
+                                                    origin=origin, only=inside)
+            if ok.any() and not _boxes_within(self._boxes(polygons, hit[ok], work.to_work(centres[ok]) - origin,
+                                                          crop_bands) + np.tile(origin, 2), zone):
+                return None  # an outline taken for a symbol crosses the crop's edge: not the whole frame's
+            keep = np.flatnonzero(cells >= 0)
+            keep = np.concatenate([keep[inside[cells[keep]]],
+                                   np.flatnonzero((cells < 0) & _within(work.to_work(centres), zone))])
+            new.take(cells[keep], ok[keep], cal_centres[keep], centres[keep])
+        lap("match")
+        try:
+            whole = self._rescue(gray, new, motion, only)
+        except DetectionError:
+            return None
+        lap("rescue")
+        timings["total"] = (time.perf_counter() - t0) * 1e3
+        self._last = new
+        kept = windows[~only]
+        self._kept_reads = work.to_frame(np.concatenate([kept[:, :2] - reach, kept[:, 2:] + reach], axis=1)
+                                         .reshape(-1, 2, 2)).reshape(-1, 4)
+        return self._cell_detection(new, whole, timings, motion)
+
+    def kept_reads(self) -> np.ndarray:
+        """Where the cells the last :meth:`find_cells_local` kept read the frame (their symbols'
+        surroundings, grown by the binarizer's reach): boxes ``(x0, y0, x1, y1)`` in frame pixels,
+        shape (k, 4). Pixels outside them decide no kept cell: the caller may take the frame it
+        gave as the one those pixels were last looked at in. None after :meth:`find_cells` (every
+        cell decided on that frame)."""
+        return self._kept_reads
+
+    def _windows(self, motion: CameraMotion) -> np.ndarray:
+        """Each cell's symbol's bounding box grown by ``LOCAL_WINDOW`` symbol sizes where ``motion``
+        puts it, ``(x0, y0, x1, y1)`` in working pixels: what its outline checks and edge check read."""
+        corners = self.work.to_work(apply(motion.matrix, self._symbol_corners))
+        margin = max(LOCAL_WINDOW * self._symbol_size, LOCAL_WINDOW_PX) / self.work.factor
+        return np.concatenate([corners.min(axis=1) - margin, corners.max(axis=1) + margin], axis=1)
 
     def _accepted(self, polygons: PolygonBatch, hit: np.ndarray, centres: np.ndarray, areas: np.ndarray,
                   binary: np.ndarray, bands: RowBands | None, motion: CameraMotion, *,
@@ -604,6 +738,50 @@ def _sequence(v: Any) -> str | None:
     return f"{describe_value(v)}, expected a list"
 
 
+def _merged(windows: np.ndarray, reach: int, step: int, size: tuple[int, int]) -> list[tuple[int, int, int, int]]:
+    """Crops ``(x0, y0, x1, y1)`` holding each window with ``reach`` pixels to spare (less at the
+    image's sides), corners on multiples of ``step``, inside an image of ``size`` (W, H); crops
+    that overlap merged."""
+    w, h = size
+    lo = np.maximum(np.floor((windows[:, :2] - reach) / step) * step, 0).astype(np.int64)
+    hi = np.minimum(np.ceil((windows[:, 2:] + reach) / step) * step, (w, h)).astype(np.int64)
+    crops = [list(map(int, (a[0], a[1], b[0], b[1]))) for a, b in zip(lo, hi)]
+    merged = True
+    while merged:
+        merged = False
+        for i in range(len(crops)):
+            for j in range(i + 1, len(crops)):
+                a, b = crops[i], crops[j]
+                if a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]:
+                    crops[i] = [min(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]), max(a[3], b[3])]
+                    del crops[j]
+                    merged = True
+                    break
+            if merged:
+                break
+    return [(a, b, c, d) for a, b, c, d in crops]
+
+
+def _within(xy: np.ndarray, box: tuple[int, int, int, int]) -> np.ndarray:
+    """Which points ``(x, y)`` (N, 2) lie inside ``box`` ``(x0, y0, x1, y1)``."""
+    return (xy[:, 0] >= box[0]) & (xy[:, 1] >= box[1]) & (xy[:, 0] <= box[2]) & (xy[:, 1] <= box[3])
+
+
+def _boxes_within(boxes: np.ndarray, box: tuple[int, int, int, int]) -> bool:
+    """Do all boxes ``(x0, y0, x1, y1)`` (N, 4) lie inside ``box`` with a pixel to spare?"""
+    return bool(_within(boxes[:, :2] - 1, box).all() and _within(boxes[:, 2:] + 1, box).all())
+
+
+def _crop_bands(bands: RowBands, y0: int, y1: int, width: int) -> RowBands | None:
+    """The bands' rows within rows ``[y0, y1)``, for a crop of those rows ``width`` wide; None when there are none."""
+    a = np.maximum(bands.starts, y0)
+    b = np.minimum(bands.stops, y1)
+    keep = b > a
+    if not keep.any():
+        return None
+    return RowBands(np.stack([a[keep] - y0, b[keep] - y0], axis=1), (y1 - y0, width))
+
+
 #: A frame whose grey levels (1st to 99th percentile) span fewer than this shows no floor.
 UNIFORM_LEVELS = 12
 #: A frame whose 99th percentile is below this is too dark to show the symbols.
@@ -662,6 +840,12 @@ class _LastCells:
         self.hit_ok = np.concatenate([self.hit_ok, ok])
         self.hit_centres = np.concatenate([self.hit_centres, centres.reshape(-1, 2)])
         self.hit_frame = np.concatenate([self.hit_frame, frame.reshape(-1, 2)])
+
+    def drop(self, rows: np.ndarray) -> None:
+        """Forget the outlines where ``rows`` (bool, one per outline) is True."""
+        keep = ~rows
+        self.hit_cells, self.hit_ok = self.hit_cells[keep], self.hit_ok[keep]
+        self.hit_centres, self.hit_frame = self.hit_centres[keep], self.hit_frame[keep]
 
     def copy(self) -> "_LastCells":
         return _LastCells(*(np.array(getattr(self, f.name)) for f in fields(self)))

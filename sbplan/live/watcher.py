@@ -112,6 +112,7 @@ class WatchStats(TypedDict):
     frames_read: int
     frames_processed: int
     frames_unchanged: int
+    frames_local: int
     frames_dropped: int
     frames_corrupt: int
     frames_missing: int
@@ -163,6 +164,11 @@ class Watcher:
         Reuse the last frame's cells when a frame's thumbnail (a 2 x 2-pixel mean every 4 pixels)
         differs from the last detected frame's by at most ``change_threshold`` grey levels
         everywhere (a still floor costs a thumbnail, not a detection).
+    local : bool
+        With ``skip_unchanged``: when a frame's thumbnail changed in part of the frame only, look
+        again only at the cells near the change, keeping the others' and the camera's pose
+        (:meth:`~sbplan.detection.Detector.find_cells_local`); a camera bump or a change over
+        much of the frame is detected whole, registration included.
     camera_tolerance_px : float
         A camera movement is reported when it moves some image corner by more than this since
         the last report.
@@ -181,7 +187,7 @@ class Watcher:
     def __init__(self, source: Any, calibration: Calibration | str | os.PathLike[str], *, hysteresis: Hysteresis | str = Hysteresis(),
                  stall_timeout: float = 5.0, backoff: tuple[float, float] = (0.5, 8.0), max_reopen: int | None = None,
                  latest: bool | None = None, start: Any = None, goal: Any = None, robot_radius: float | None = None,
-                 skip_unchanged: bool = True, change_threshold: float = 10.0, camera_tolerance_px: float = 1.0,
+                 skip_unchanged: bool = True, local: bool = True, change_threshold: float = 10.0, camera_tolerance_px: float = 1.0,
                  max_frames: int | None = None, stats_interval: float | None = None, keep_image: bool = False,
                  fps: float | None = None, obstacle_model: str | None = None, **stages: Any):
         if not isinstance(hysteresis, Hysteresis):
@@ -216,6 +222,7 @@ class Watcher:
         self.backoff = backoff
         self.reader = FrameReader(self.source, latest=latest, backoff=backoff, max_attempts=max_reopen)
         self.skip_unchanged = bool(skip_unchanged)
+        self.local = bool(local)
         self.change_threshold = float(change_threshold)
         self.camera_tolerance_px = float(camera_tolerance_px)
         self.max_frames = max_frames
@@ -242,7 +249,7 @@ class Watcher:
         self._camera_lost = False
         self._route: Route | None = None
         self._route_error: str | None = None
-        self._processed = self._skipped = self._unregistered = 0
+        self._processed = self._skipped = self._unregistered = self._local = 0
         self._latencies: collections.deque[float] = collections.deque(maxlen=LATENCY_WINDOW)
         self._cpu_s = 0.0
         self._first_t: float | None = None
@@ -289,7 +296,8 @@ class Watcher:
         return EXIT_CODES.get(self.reason or "stopped", 1)
 
     def stats(self) -> WatchStats:
-        """Counters since the start: frames read, processed, skipped as unchanged, dropped by the
+        """Counters since the start: frames read, processed, skipped as unchanged, detected in part
+        only (``frames_local``), dropped by the
         reader, corrupt, missing from the source's numbering, unregistered; reconnects; frames per
         second; median and 99th-percentile latency (ms) from capture to the end of the frame's
         processing; CPU milliseconds per processed frame."""
@@ -300,6 +308,7 @@ class Watcher:
         fps = (len(recent) - 1) / (recent[-1] - recent[0]) if len(recent) >= 2 and recent[-1] > recent[0] else None
         return {
             "frames_read": r.read, "frames_processed": self._processed, "frames_unchanged": self._skipped,
+            "frames_local": self._local,
             "frames_dropped": r.dropped, "frames_corrupt": r.corrupt, "frames_missing": r.missing,
             "frames_unregistered": self._unregistered, "reconnects": r.opened - 1 if r.opened else 0,
             "fps": None if fps is None else round(fps, 3),
@@ -410,16 +419,28 @@ class Watcher:
         cal = self.calibration
         events: list[Event] = []
         reused = None  # the last frame's cells and camera, when this frame did not change
-        thumb = None
+        thumb = changed = None
         if self.skip_unchanged and self._last_raw is not None and not self._replan.is_set():
             h, w = image.shape[:2]
             thumb = cv2.resize(image, (w // THUMB_BLOCK, h // THUMB_BLOCK), interpolation=cv2.INTER_LINEAR)
-            if (self._thumb is not None and thumb.shape == self._thumb.shape
-                    and float(cv2.absdiff(thumb, self._thumb).max()) <= self.change_threshold):
-                reused = self._last_raw
+            if self._thumb is not None and thumb.shape == self._thumb.shape:
+                diff = cv2.absdiff(thumb, self._thumb)
+                if float(diff.max()) <= self.change_threshold:
+                    reused = self._last_raw
+                elif self.local:
+                    changed = diff > self.change_threshold
+                    changed = changed.any(axis=2) if changed.ndim == 3 else changed
+        found = None
+        if changed is not None and thumb is not None:
+            found = self.detector.find_cells_local(image, changed_boxes(changed, THUMB_BLOCK))
         if reused is not None:
             self._skipped += 1
             raw, motion = reused
+        elif found is not None and thumb is not None and self._thumb is not None:
+            self._local += 1
+            raw, motion = found.occupied, found.camera
+            self._last_raw = (raw, motion)
+            self._thumb = refreshed(self._thumb, thumb, self.detector.kept_reads(), THUMB_BLOCK)
         else:
             try:
                 found = self.detector.find_cells(image)
@@ -584,3 +605,27 @@ def watch(source: Any, calibration: Calibration | str | os.PathLike[str], **opti
     ...     print(event["type"], event["frame"])
     """
     return Watcher(source, calibration, **options).events()
+
+
+def changed_boxes(changed: np.ndarray, block: int) -> list[tuple[int, int, int, int]]:
+    """The boxes ``(x0, y0, x1, y1)`` (frame pixels, x1 and y1 excluded) of the changed samples
+    of a thumbnail taken every ``block`` pixels (``changed``: (h, w) bool), one per 8-connected
+    group, a sample's block wide on every side (a sample reads only part of its block)."""
+    _, _, stats, _ = cv2.connectedComponentsWithStats(changed.view(np.uint8), connectivity=8)
+    b = block
+    return [(int(x) * b - b, int(y) * b - b, int(x + w) * b + b, int(y + h) * b + b) for x, y, w, h, _ in stats[1:]]
+
+
+def refreshed(old: np.ndarray, new: np.ndarray, kept_reads: np.ndarray | None, block: int) -> np.ndarray:
+    """The thumbnail to compare the next frames with after part of a frame was detected again:
+    ``new`` wherever no kept cell reads the frame (``kept_reads``, boxes in frame pixels), ``old``
+    where one does, so that each sample stays the one the cells reading it were decided on."""
+    if kept_reads is None:
+        return new
+    out = new.copy()
+    h, w = out.shape
+    for x0, y0, x1, y1 in kept_reads.tolist():
+        r0, c0 = max(int(y0 // block) - 1, 0), max(int(x0 // block) - 1, 0)
+        r1, c1 = min(int(y1 // block) + 2, h), min(int(x1 // block) + 2, w)
+        out[r0:r1, c0:c1] = old[r0:r1, c0:c1]
+    return out
