@@ -22,10 +22,12 @@ import pytest
 from shapely.geometry import LineString, Polygon, box
 
 import sbplan
+from sbplan.detection import Detector
 from sbplan.errors import InputError
 from sbplan.live import (EXIT_CODES, CellHysteresis, FrameReader, Hysteresis, IterableSource, ObstacleTracker,
                          Read, Source, SourceError, VideoSource, Watcher, events_schema)
 from sbplan.live.reader import Frame, Notice
+from sbplan.live.watcher import THUMB_BLOCK, changed_boxes, refreshed
 from sbplan.synth import FloorSpec
 from sbplan.synth.sequence import demo_sequence, read_truth, write_sequence
 
@@ -194,6 +196,75 @@ def test_camera_bump_is_reported(stream, avi_events):
     cam = moved[0]["camera"]
     assert moved[0]["registered"] and abs(cam["rotation_deg"] - rot) < 0.05
     assert np.hypot(cam["shift_px"][0] - dx, cam["shift_px"][1] - dy) < 0.5
+
+
+# -- changed in part: only the cells near the change detected again -------------------------------------
+def test_a_local_change_gives_the_cells_a_whole_detection_gives(stream):
+    """On each changed frame of the stream, Detector.find_cells_local (as the watch calls it) gives
+    the cells find_cells gives; the camera bump goes through find_cells."""
+    cal = stream["cal"]
+    folder = stream["root"] / "folder" / stream["folder"]
+    frames = [cv2.imread(str(folder / f"frame-{t['frame']:05d}.png"), cv2.IMREAD_GRAYSCALE)
+              for t in frames_of(stream, "folder")]
+    bump_frame = stream["spec"].bump[0]
+    bumped = next(i for i, t in enumerate(frames_of(stream, "folder")) if t["frame"] >= bump_frame)
+    local, whole = Detector(cal), Detector(cal)
+    thumb = None
+    compared, paths = 0, {}
+    for i, image in enumerate(frames):
+        expected = whole.find_cells(image)
+        small = cv2.resize(image, (image.shape[1] // THUMB_BLOCK, image.shape[0] // THUMB_BLOCK),
+                           interpolation=cv2.INTER_LINEAR)
+        changed = None if thumb is None else cv2.compare(cv2.absdiff(small, thumb), 10, cv2.CMP_GT)
+        if changed is None or not changed.any():
+            if changed is None:
+                local.find_cells(image)
+                thumb = small
+            continue
+        before = local.motion
+        got = local.find_cells_local(image, changed_boxes(changed, THUMB_BLOCK))
+        paths[i] = "whole" if got is None else "local"
+        if got is None:
+            local.find_cells(image)
+            thumb = small
+            continue
+        thumb = refreshed(thumb, small, local.kept_reads(), THUMB_BLOCK)
+        compared += 1
+        assert np.array_equal(got.occupied, expected.occupied), i
+        assert (got.symbols_found, got.symbols_rescued) == (expected.symbols_found, expected.symbols_rescued)
+        # the same centres, maybe in another order; the pose is the last frame's
+        for a, b in ((got.matched_centres_px, expected.matched_centres_px),
+                     (got.candidates_px, expected.candidates_px)):
+            assert a.shape == b.shape
+            assert np.allclose(np.sort(a, axis=0), np.sort(b, axis=0), atol=0.5)
+        assert got.camera is before and local.motion is before
+    # most changed frames are local ones (an obstacle, the shadow); the bump is not
+    assert compared >= 0.6 * len(paths) and compared >= 8
+    assert paths[bumped] == "whole"
+
+
+def test_a_watch_reports_the_same_events_with_local_detection_or_whole(stream, folder_events):
+    events = run(Watcher(stream["folder"], stream["cal"], hysteresis=H, start=START, goal=GOAL, robot_radius=RADIUS,
+                         local=False))
+
+    def summary(evs):
+        out = []
+        for e in evs:
+            if e["type"] in ("stats", "ended", "started"):
+                continue
+            item = [e["type"], e["frame"]]
+            if "obstacle" in e:
+                item += [e["obstacle"]["id"], e["obstacle"]["cells"]]
+            if e["type"] == "route":
+                item += [e["status"], e["route"] and np.round(e["route"]["waypoints_m"], 6).tolist()]
+            out.append(item)
+        return out
+
+    assert summary(events) == summary(folder_events)
+    assert any(e["type"] == "route" for e in events) and any(e["type"] == "obstacle_moved" for e in events)
+    local = folder_events[-1]["stats"]
+    assert local["frames_local"] > 0 and events[-1]["stats"]["frames_local"] == 0
+    assert local["frames_processed"] == events[-1]["stats"]["frames_processed"]
 
 
 # -- the stream's faults --------------------------------------------------------------------------------

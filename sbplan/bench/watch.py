@@ -9,7 +9,9 @@ reference. Then, with one OpenCV thread:
   time of the 10 is what the frame costs when nothing else disturbs the core.
 - **throughput** (frames as fast as the pipeline takes them, every frame): frames in memory through
   :class:`sbplan.live.Watcher` (no decoding), as the watch runs by default (a frame that did not
-  change is not detected again) and with every frame detected (``--every-frame``); the AVI through
+  change is not detected again, one that changed in part has only the cells near the change
+  detected again), the same with changed frames detected whole (``--whole-frames``), and with every
+  frame detected (``--every-frame``); the AVI through
   ``cv2.VideoCapture`` and the same pipeline (decoding in the reader thread); decoding alone.
   Frames per second of wall-clock time, and CPU milliseconds per frame (``time.thread_time`` of
   the pipeline's thread; process CPU time when decoding runs beside it).
@@ -168,10 +170,12 @@ def measure(*, sizes: Sequence[tuple[int, int]] = ((1280, 960), (1920, 1080)), f
                                     "median": 1e3 * float(np.median([b for _, b in per_frame]))}
             # throughput, no decoding: as the watch runs, and every frame detected
             step(f"{at}: throughput from memory")
-            for key, skip in (("memory", True), ("memory_every_frame", False)):
-                st, wall, cpu = _watch(mem(), cal, hysteresis=hysteresis, latest=False, skip_unchanged=skip)
+            for key, skip, local in (("memory", True, True), ("memory_whole", True, False),
+                                     ("memory_every_frame", False, False)):
+                st, wall, cpu = _watch(mem(), cal, hysteresis=hysteresis, latest=False, skip_unchanged=skip, local=local)
                 row[key] = {"fps": st["frames_processed"] / wall, "cpu_ms_per_frame": st["cpu_ms_per_frame"],
-                            "frames": st["frames_processed"], "unchanged": st["frames_unchanged"]}
+                            "frames": st["frames_processed"], "unchanged": st["frames_unchanged"],
+                            "local": st["frames_local"]}
             # throughput with decoding (AVI through cv2.VideoCapture), and decoding alone
             step(f"{at}: throughput decoding the AVI")
             n_dec, wall_dec, cpu_dec = 0, 0.0, 0.0
@@ -252,7 +256,10 @@ def format_tables(result: dict[str, Any]) -> str:
         lines.append(f"  {'throughput (every frame, as fast as it goes)':<52} {'fps':>8} {'CPU ms/frame':>13}")
         m, e, a, d = r["memory"], r["memory_every_frame"], r["avi"], r["decode_only"]
         lines.append(f"  {'no decoding, as watched (unchanged frames reused)':<52} {m['fps']:8.1f} {m['cpu_ms_per_frame']:13.2f}"
-                     f"   ({m['unchanged']} of {m['frames']} frames unchanged)")
+                     f"   ({m['unchanged']} of {m['frames']} frames unchanged, {m['local']} detected in part)")
+        if "memory_whole" in r:
+            mw = r["memory_whole"]
+            lines.append(f"  {'  the same, changed frames detected whole':<52} {mw['fps']:8.1f} {mw['cpu_ms_per_frame']:13.2f}")
         lines.append(f"  {'no decoding, every frame detected':<52} {e['fps']:8.1f} {e['cpu_ms_per_frame']:13.2f}")
         lines.append(f"  {'AVI: decoding + pipeline (process CPU)':<52} {a['fps']:8.1f} {a['cpu_ms_per_frame']:13.2f}"
                      f"   (pipeline thread {a['pipeline_cpu_ms_per_frame']:.2f})")

@@ -53,6 +53,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--stats", type=float, metavar="S", help="a 'stats' event every S seconds")
     parser.add_argument("--every-frame", action="store_true",
                         help="detect every frame, even one that did not change since the last (slower)")
+    parser.add_argument("--whole-frames", action="store_true",
+                        help="detect a frame that changed in part whole (default: only the cells near the change, "
+                             "keeping the others and the camera's pose)")
     parser.add_argument("--change-threshold", type=float, default=10.0, metavar="LEVELS",
                         help="grey levels some part of the frame (a 2x2 mean every 4 px) must change by for the frame "
                              "to be detected again (default 10)")
@@ -76,6 +79,7 @@ def run(args: argparse.Namespace) -> int:
     watcher = Watcher(source, args.calibration, hysteresis=args.hysteresis, stall_timeout=args.stall_timeout,
                       backoff=args.backoff, max_reopen=args.max_reopen, start=args.start, goal=args.goal,
                       robot_radius=args.robot_radius, skip_unchanged=not args.every_frame,
+                      local=not args.whole_frames,
                       change_threshold=args.change_threshold, camera_tolerance_px=args.camera_tolerance,
                       max_frames=args.max_frames, stats_interval=args.stats, obstacle_model=args.obstacle_model,
                       **stage_choices(args))

@@ -63,7 +63,7 @@ LOCAL_SHARE = 0.5
 #: What a cell's checks read around its symbol's bounding box, in symbol sizes and at least
 #: LOCAL_WINDOW_PX pixels: the outline checks stay within the outline tolerance (about 3 px), the
 #: edge probes within EDGE_DEPTH_PX, the scratch repair's window within 9 px.
-LOCAL_WINDOW = 0.5
+LOCAL_WINDOW = 0.25
 LOCAL_WINDOW_PX = 12.0
 #: The edge check may rescue at most as many cells as the matcher found symbols (or this many, on a
 #: mostly covered floor): more, and it would be deciding the cells alone.
@@ -140,6 +140,7 @@ class Detector:
         # the last frame's cells, what find_cells_local starts from (None: no frame, or it failed)
         self._last: _LastCells | None = None
         self._kept_reads: np.ndarray | None = None
+        self._windows_cache: tuple[CameraMotion, np.ndarray] | None = None
         self._warned_at: float | None = None  # time.monotonic() of the last movement warning logged
         # what the frames' grey-level centres are compared with, by flat cell number
         self._registration_centres = (cal.registration_centres_px if cal.registration_centres_px is not None
@@ -350,7 +351,7 @@ class Detector:
             new.found[inside] = False
             # what the last frame had of these cells, and its candidates off the grid in the zone, go
             fx = work.to_work(new.hit_frame)
-            gone = (only[new.hit_cells] & (new.hit_cells >= 0)) | ((new.hit_cells < 0) & _within(fx, zone))
+            gone = (inside[new.hit_cells] & (new.hit_cells >= 0)) | ((new.hit_cells < 0) & _within(fx, zone))
             new.drop(gone)
             crop_bands = _crop_bands(bands, y0, y1, x1 - x0) if bands is not None else None
             if bands is not None and crop_bands is None:
@@ -391,9 +392,14 @@ class Detector:
     def _windows(self, motion: CameraMotion) -> np.ndarray:
         """Each cell's symbol's bounding box grown by ``LOCAL_WINDOW`` symbol sizes where ``motion``
         puts it, ``(x0, y0, x1, y1)`` in working pixels: what its outline checks and edge check read."""
+        cached = self._windows_cache
+        if cached is not None and cached[0] is motion:
+            return cached[1]
         corners = self.work.to_work(apply(motion.matrix, self._symbol_corners))
         margin = max(LOCAL_WINDOW * self._symbol_size, LOCAL_WINDOW_PX) / self.work.factor
-        return np.concatenate([corners.min(axis=1) - margin, corners.max(axis=1) + margin], axis=1)
+        windows = np.concatenate([corners.min(axis=1) - margin, corners.max(axis=1) + margin], axis=1)
+        self._windows_cache = (motion, windows)
+        return windows
 
     def _accepted(self, polygons: PolygonBatch, hit: np.ndarray, centres: np.ndarray, areas: np.ndarray,
                   binary: np.ndarray, bands: RowBands | None, motion: CameraMotion, *,

@@ -53,6 +53,9 @@ EXIT_CODES = {
 #: THUMB_BLOCK pixels (a bilinear quarter-size resize: a sixth of the cost of whole-block means,
 #: and anything hiding part of a symbol covers many such samples).
 THUMB_BLOCK = 4
+#: A frame's changed part is located to CHANGE_POOL x CHANGE_POOL thumbnail samples (16 pixels):
+#: finer costs more than it saves (the detector re-examines whole cells around it anyway).
+CHANGE_POOL = 4
 #: Latencies kept for the median and 99th percentile.
 LATENCY_WINDOW = 10000
 #: How often the pipeline wakes up to look for a stall when no frame comes, seconds.
@@ -428,8 +431,8 @@ class Watcher:
                 if float(diff.max()) <= self.change_threshold:
                     reused = self._last_raw
                 elif self.local:
-                    changed = diff > self.change_threshold
-                    changed = changed.any(axis=2) if changed.ndim == 3 else changed
+                    diff = diff.max(axis=2) if diff.ndim == 3 else diff
+                    changed = cv2.compare(diff, self.change_threshold, cv2.CMP_GT)
         found = None
         if changed is not None and thumb is not None:
             found = self.detector.find_cells_local(image, changed_boxes(changed, THUMB_BLOCK))
@@ -608,12 +611,18 @@ def watch(source: Any, calibration: Calibration | str | os.PathLike[str], **opti
 
 
 def changed_boxes(changed: np.ndarray, block: int) -> list[tuple[int, int, int, int]]:
-    """The boxes ``(x0, y0, x1, y1)`` (frame pixels, x1 and y1 excluded) of the changed samples
-    of a thumbnail taken every ``block`` pixels (``changed``: (h, w) bool), one per 8-connected
-    group, a sample's block wide on every side (a sample reads only part of its block)."""
-    _, _, stats, _ = cv2.connectedComponentsWithStats(changed.view(np.uint8), connectivity=8)
+    """The boxes ``(x0, y0, x1, y1)`` (frame pixels, x1 and y1 excluded) around the changed samples
+    of a thumbnail taken every ``block`` pixels (``changed``: (h, w) uint8, non-zero where changed),
+    one per 8-connected group of CHANGE_POOL x CHANGE_POOL samples with a change, a sample's block
+    wider on every side (a sample reads only part of its block)."""
+    h, w = changed.shape
+    # (a 0/255 mask's area mean stays non-zero wherever one sample changed)
+    pooled = cv2.resize(changed, (max(1, w // CHANGE_POOL), max(1, h // CHANGE_POOL)), interpolation=cv2.INTER_AREA)
+    fy, fx = h / pooled.shape[0], w / pooled.shape[1]
+    _, _, stats, _ = cv2.connectedComponentsWithStats(pooled, connectivity=8)
     b = block
-    return [(int(x) * b - b, int(y) * b - b, int(x + w) * b + b, int(y + h) * b + b) for x, y, w, h, _ in stats[1:]]
+    return [(int(x * fx) * b - b, int(y * fy) * b - b, math.ceil((x + bw) * fx) * b + b, math.ceil((y + bh) * fy) * b + b)
+            for x, y, bw, bh, _ in stats[1:].tolist()]
 
 
 def refreshed(old: np.ndarray, new: np.ndarray, kept_reads: np.ndarray | None, block: int) -> np.ndarray:
@@ -622,10 +631,12 @@ def refreshed(old: np.ndarray, new: np.ndarray, kept_reads: np.ndarray | None, b
     where one does, so that each sample stays the one the cells reading it were decided on."""
     if kept_reads is None:
         return new
-    out = new.copy()
-    h, w = out.shape
-    for x0, y0, x1, y1 in kept_reads.tolist():
-        r0, c0 = max(int(y0 // block) - 1, 0), max(int(x0 // block) - 1, 0)
-        r1, c1 = min(int(y1 // block) + 2, h), min(int(x1 // block) + 2, w)
-        out[r0:r1, c0:c1] = old[r0:r1, c0:c1]
-    return out
+    h, w = new.shape[:2]
+    r0 = np.clip(np.floor(kept_reads[:, 1] / block).astype(np.int64) - 1, 0, h).tolist()
+    c0 = np.clip(np.floor(kept_reads[:, 0] / block).astype(np.int64) - 1, 0, w).tolist()
+    r1 = np.clip(np.floor(kept_reads[:, 3] / block).astype(np.int64) + 2, 0, h).tolist()
+    c1 = np.clip(np.floor(kept_reads[:, 2] / block).astype(np.int64) + 2, 0, w).tolist()
+    kept = np.zeros((h, w), bool)
+    for a, b, c, d in zip(r0, r1, c0, c1):
+        kept[a:b, c:d] = True
+    return np.where(kept if new.ndim == 2 else kept[..., None], old, new)
