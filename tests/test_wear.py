@@ -144,3 +144,36 @@ def test_repaired_piece_hidden_on_a_plain_square():
     big = np.full((140, 160), FLOOR_GREY, np.uint8)
     big[20:120, 30:130] = bitten
     assert repaired_piece_hidden(big[20:120, 30:130], (30, 20), points[0] + (30, 20), inward[0], allowance, level)
+
+
+@pytest.mark.parametrize("motion", [None, (2.5, -1.5, 0.2, 1.0)], ids=["still", "moved"])
+def test_objects_put_on_a_worn_floor_are_read_locally_as_the_whole_frame_reads_them(calibration, motion):
+    """Detector.find_cells_local on a frame that differs from the last one in boxes only gives
+    find_cells's cells there (the scratch repair's cells kept or looked at again); a change
+    everywhere (the camera moved) is left to find_cells."""
+    effects = {"wear": 1.0} if motion is None else {"wear": 1.0, "motion": motion}
+    empty, _ = render_scene(FLOOR, SceneSpec(n_obstacles=0, effects=effects), seed=2)
+    scene, truth = render_scene(FLOOR, SceneSpec(n_obstacles=1, effects=effects), seed=2)
+    # the object (and its shadow), pasted into the empty frame: a frame that changed there only
+    objects = cv2.dilate((cv2.absdiff(scene, empty) > 40).astype(np.uint8), np.ones((9, 9), np.uint8))
+    _, _, stats, _ = cv2.connectedComponentsWithStats(objects)
+    boxes = [(x, y, x + w, y + h) for x, y, w, h, area in stats[1:] if area > 50]
+    frame = empty.copy()
+    for x0, y0, x1, y1 in boxes:
+        frame[y0:y1, x0:x1] = scene[y0:y1, x0:x1]
+    detector = Detector(calibration)
+    before = detector.find_cells(empty)
+    assert not before.occupied.any()
+    got = detector.find_cells_local(frame, boxes)
+    expected = Detector(calibration).find_cells(frame)
+    assert got is not None and got.camera is before.camera
+    assert expected.occupied.sum() >= 2 and np.array_equal(got.occupied, expected.occupied)
+    assert (got.symbols_found, got.symbols_rescued) == (expected.symbols_found, expected.symbols_rescued)
+    # scratched symbols were rescued, most of them kept from the empty frame
+    assert 0 < expected.symbols_rescued < before.symbols_rescued
+    # back to the empty floor, locally again: every cell free
+    assert not detector.find_cells_local(empty, boxes).occupied.any()
+    # the camera bumped: every part of the frame changed, left to find_cells (which registers it)
+    bumped, _ = render_scene(FLOOR, SceneSpec(n_obstacles=0, effects={"wear": 1.0, "motion": (6.0, 4.0, 0.5, 1.0)}),
+                             seed=2)
+    assert detector.find_cells_local(bumped, [(0, 0, FLOOR.width, FLOOR.height)]) is None
