@@ -381,7 +381,7 @@ class Detector:
                                          .reshape(-1, 2, 2)).reshape(-1, 4)
         return self._cell_detection(new, whole, timings, motion)
 
-    def kept_reads(self) -> np.ndarray:
+    def kept_reads(self) -> np.ndarray | None:
         """Where the cells the last :meth:`find_cells_local` kept read the frame (their symbols'
         surroundings, grown by the binarizer's reach): boxes ``(x0, y0, x1, y1)`` in frame pixels,
         shape (k, 4). Pixels outside them decide no kept cell: the caller may take the frame it
@@ -555,7 +555,7 @@ class Detector:
             matched = np.concatenate([matched, self._cell_centres[whole]])
         rows, cols = self.calibration.grid.shape
         return CellDetection(~found.reshape(rows, cols), int(last.found.sum()), matched,
-                             last.hit_centres[~last.hit_ok], timings, tuple(self.calibration.image_shape), motion,
+                             last.hit_centres[~last.hit_ok], timings, self.work.shape, motion,
                              symbols_rescued=len(whole))
 
     def _piece_hidden(self, cells: np.ndarray, motion: CameraMotion):
@@ -785,7 +785,7 @@ def _crop_bands(bands: RowBands, y0: int, y1: int, width: int) -> RowBands | Non
     keep = b > a
     if not keep.any():
         return None
-    return RowBands(np.stack([a[keep] - y0, b[keep] - y0], axis=1), (y1 - y0, width))
+    return RowBands(np.stack([a[keep] - y0, b[keep] - y0], axis=1).tolist(), (y1 - y0, width))
 
 
 #: A frame whose grey levels (1st to 99th percentile) span fewer than this shows no floor.

@@ -432,7 +432,8 @@ class Watcher:
                     reused = self._last_raw
                 elif self.local:
                     diff = diff.max(axis=2) if diff.ndim == 3 else diff
-                    changed = cv2.compare(diff, self.change_threshold, cv2.CMP_GT)
+                    # (0/255, as changed_boxes wants it)
+                    changed = np.where(diff > self.change_threshold, np.uint8(255), np.uint8(0))
         found = None
         if changed is not None and thumb is not None:
             found = self.detector.find_cells_local(image, changed_boxes(changed, THUMB_BLOCK))
