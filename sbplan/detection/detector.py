@@ -216,15 +216,8 @@ class Detector:
             The camera's movement since calibration cannot be estimated or is too large.
         """
         cal = self.calibration
-        timings: dict[str, float] = {}
-        t0 = t = time.perf_counter()
-
-        def lap(name: str) -> None:
-            nonlocal t
-            now = time.perf_counter()
-            timings[name] = timings.get(name, 0.0) + (now - t) * 1e3
-            t = now
-
+        lap = _Laps()
+        timings, t0 = lap.timings, lap.t0
         gray = as_gray(load_image(image) if isinstance(image, (str, os.PathLike)) else image, name="image")
         if gray.shape != tuple(cal.image_shape):
             raise DetectionError(
@@ -310,15 +303,8 @@ class Detector:
         reach_step = locality() if locality is not None else None
         if last is None or reach_step is None:
             return None
-        timings: dict[str, float] = {}
-        t0 = t = time.perf_counter()
-
-        def lap(name: str) -> None:
-            nonlocal t
-            now = time.perf_counter()
-            timings[name] = timings.get(name, 0.0) + (now - t) * 1e3
-            t = now
-
+        lap = _Laps()
+        timings, t0 = lap.timings, lap.t0
         gray = as_gray(image, name="image")
         work, motion = self.work, self.motion
         reach, step = (int(v) for v in reach_step)
@@ -815,6 +801,21 @@ def frame_diagnosis(gray: np.ndarray) -> str | None:
         return ("no floor in view: the frame is noise (neighbouring pixels are unrelated); the camera's signal is "
                 "broken: check the camera and its cable, then detect again")
     return None
+
+
+class _Laps:
+    """Milliseconds per step: ``lap(name)`` adds the time since the last lap to ``timings[name]``."""
+
+    __slots__ = ("timings", "t0", "_t")
+
+    def __init__(self) -> None:
+        self.timings: dict[str, float] = {}
+        self.t0 = self._t = time.perf_counter()
+
+    def __call__(self, name: str) -> None:
+        now = time.perf_counter()
+        self.timings[name] = self.timings.get(name, 0.0) + (now - self._t) * 1e3
+        self._t = now
 
 
 @dataclass(eq=False)
