@@ -21,7 +21,9 @@ reference. Then, with one OpenCV thread:
   from memory and from the AVI.
 - **--streams streams on one core**: that many watches at --fps in threads of one process pinned
   to one CPU (``os.sched_setaffinity``), frames from memory: per stream, frames processed and
-  dropped and latency; CPU per stream as a share of the core.
+  dropped and latency; CPU per stream as a share of the core. Twice: all streams the same stream
+  in step (every change comes to all at once: the worst case), then each stream a few frames
+  behind the last (as independent cameras).
 
 The machine may be shared: wall-clock figures (fps, latency, drops) then suffer; CPU time per
 frame much less, and it decides whether N streams at F fps fit one core (N x F x CPU/frame <= 1 s).
@@ -201,6 +203,9 @@ def measure(*, sizes: Sequence[tuple[int, int]] = ((1280, 960), (1920, 1080)), f
             if streams:
                 step(f"{at}: {streams} streams at once")
                 row["streams"] = _streams(played, cal, n=streams, fps=fps, hysteresis=hysteresis)
+                # the same streams out of step: a real site's cameras do not all change at once
+                row["streams_staggered"] = _streams(played, cal, n=streams, fps=fps, hysteresis=hysteresis,
+                                                    stagger=max(1, len(images) // streams))
             rows.append(row)
     return {"setup": {"sizes": [list(s) for s in sizes], "frames": frames, "loops": loops, "fps": fps,
                       "streams": streams, "hysteresis": hysteresis, "seed": seed, "opencv_threads": 1,
@@ -210,10 +215,12 @@ def measure(*, sizes: Sequence[tuple[int, int]] = ((1280, 960), (1920, 1080)), f
             "rows": rows}
 
 
-def _streams(frames: list[np.ndarray], cal: Calibration, *, n: int, fps: float, hysteresis: str) -> dict[str, Any]:
-    """``n`` watches at ``fps`` in threads of this process, pinned to one core."""
-    watchers = [Watcher(paced(IterableSource(frames, live=False, fps=fps)), cal, hysteresis=hysteresis,
-                        stall_timeout=30.0) for _ in range(n)]
+def _streams(frames: list[np.ndarray], cal: Calibration, *, n: int, fps: float, hysteresis: str,
+             stagger: int = 0) -> dict[str, Any]:
+    """``n`` watches at ``fps`` in threads of this process, pinned to one core; with ``stagger``,
+    stream ``i`` plays the frames from frame ``i * stagger`` on (and the first ones last)."""
+    watchers = [Watcher(paced(IterableSource(frames[i * stagger:] + frames[:i * stagger], live=False, fps=fps)), cal,
+                        hysteresis=hysteresis, stall_timeout=30.0) for i in range(n)]
     before = os.sched_getaffinity(0) if hasattr(os, "sched_setaffinity") else None
     pinned = before is not None
     if before is not None:
@@ -230,7 +237,7 @@ def _streams(frames: list[np.ndarray], cal: Calibration, *, n: int, fps: float, 
         if before is not None:
             os.sched_setaffinity(0, before)
     stats = [w.stats() for w in watchers]
-    return {"n": n, "pinned_to_one_core": pinned, "wall_s": wall, "process_cpu_share": cpu / wall,
+    return {"n": n, "stagger": stagger, "pinned_to_one_core": pinned, "wall_s": wall, "process_cpu_share": cpu / wall,
             "processed": [s["frames_processed"] for s in stats], "dropped": [s["frames_dropped"] for s in stats],
             "read": [s["frames_read"] for s in stats],
             "latency_median_ms": [_latency(s, "median") for s in stats],
@@ -273,11 +280,12 @@ def format_tables(result: dict[str, Any]) -> str:
             v = r[key]
             lines.append(f"  {'  ' + label:<52} {v['processed']:>10} {v['dropped']:>8} {v['latency_ms']['median']:>10.2f} "
                          f"{v['latency_ms']['p99']:>8.2f}")
-        if "streams" in r:
-            st = r["streams"]
+        for st in (r[k] for k in ("streams", "streams_staggered") if k in r):
             cpu = np.array(st["cpu_ms_per_frame"], float)
+            step = (f", each {st['stagger']} frames behind the last" if st.get("stagger") else
+                    ", all the same stream in step")
             lines.append(f"  {st['n']} streams at {s['fps']:g} fps on one core ({'pinned' if st['pinned_to_one_core'] else 'NOT pinned'}), "
-                         f"frames from memory: process CPU {100 * st['process_cpu_share']:.0f} % of a core")
+                         f"frames from memory{step}: process CPU {100 * st['process_cpu_share']:.0f} % of a core")
             lines.append(f"    processed per stream {min(st['processed'])}..{max(st['processed'])} of {r['frames']}, dropped "
                          f"{min(st['dropped'])}..{max(st['dropped'])}; latency median {np.median(st['latency_median_ms']):.2f} ms, "
                          f"p99 {max(st['latency_p99_ms']):.2f} ms (worst stream)")
