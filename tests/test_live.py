@@ -238,8 +238,8 @@ def test_a_local_change_gives_the_cells_a_whole_detection_gives(stream):
             assert a.shape == b.shape
             assert np.allclose(np.sort(a, axis=0), np.sort(b, axis=0), atol=0.5)
         assert got.camera is before and local.motion is before
-    # most changed frames are local ones (an obstacle, the shadow); the bump is not
-    assert compared >= 0.6 * len(paths) and compared >= 8
+    # most changed frames are local ones (an obstacle, the shadow: 9 of 14 here); the bump is not
+    assert compared > len(paths) / 2 and compared >= 8
     assert paths[bumped] == "whole"
 
 
