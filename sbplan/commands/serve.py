@@ -64,7 +64,7 @@ def run(args: argparse.Namespace) -> int:
     from ..detection import load_calibration
     from ..service import Limits, Service
     from ..service.app import create_app
-    from ..service.server import address, bind, is_loopback, make_server
+    from ..service.server import address, bind, freeze_startup_objects, is_loopback, make_server
     from ..service.sources import open_source
     from ..service.workers import default_processes
 
@@ -94,6 +94,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"sbplan serve: http://{shown}:{port} (API: /docs, events: ws://{shown}:{port}/events"
               f"{', bearer token required' if token else ''})", flush=True)
         server = make_server(create_app(service, token=token, source=source), access_log=args.access_log)
+        server.config.load()  # uvicorn's protocol modules imported now, before the freeze
+        freeze_startup_objects()
         server.run(sockets=[sock])
     finally:
         service.close()

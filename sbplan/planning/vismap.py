@@ -646,56 +646,72 @@ class VisibilityMap:
         test) when its pair comes first; an end that is hidden drops its row or column. The first
         pair whose ends are both seen is the shortest. After _LAZY_TESTS hidden ends, the fans
         (every candidate corner at once) decide the rest."""
-        ds, cs = self._tangent_from(t, s)
-        dg, cg = self._tangent_from(t, g)
+        (ds, cs), (dg, cg) = self._tangents_from(t, s, g)
         if len(cg) == 0:
             raise NoRouteError("no route: the goal is enclosed (no corner sees it)")
-        total = ds[:, None] + t.dist[cs[:, None], cg] + dg
+        # (ns, ng) pair lengths as if both ends were seen. Two takes and in-place sums: half the
+        # time of a 2-D fancy index on the service benchmark's ~85 x 85 (the same sums).
+        total = t.dist.take(cs, axis=0).take(cg, axis=1)
+        total += ds[:, None]
+        total += dg
+        flat = total.ravel()  # a view
         ns, ng = len(cs), len(cg)
-        seen_s = np.zeros(ns, bool)
-        seen_g = np.zeros(ng, bool)
+        # Python lists and floats in the loop: numpy scalar reads cost more than the argmin.
+        seen_s, seen_g = [False] * ns, [False] * ng
+        sx, sy, gx, gy = float(s[0]), float(s[1]), float(g[0]), float(g[1])
+        xs, ys, xg, yg = t.x[cs].tolist(), t.y[cs].tolist(), t.x[cg].tolist(), t.y[cg].tolist()
+        blocked = self._one_blocked
         hidden = 0
         while total.size:
-            k = int(np.argmin(total))
-            if not math.isfinite(total.flat[k]):
+            k = int(total.argmin())
+            if not math.isfinite(flat[k]):
                 break
             i, j = divmod(k, ng)
             if not seen_s[i]:
-                if not self.segment_free(s, (t.x[cs[i]], t.y[cs[i]])):
+                if blocked(sx, sy, xs[i], ys[i]):
                     total[i] = np.inf
                     hidden += 1
                 else:
                     seen_s[i] = True
             if seen_s[i] and not seen_g[j]:
-                if not self.segment_free(g, (t.x[cg[j]], t.y[cg[j]])):
+                if blocked(gx, gy, xg[j], yg[j]):
                     total[:, j] = np.inf
                     hidden += 1
                 else:
                     seen_g[j] = True
             if seen_s[i] and seen_g[j]:
-                return self._table_route(t, s, g, int(cs[i]), int(cg[j])), float(total.flat[k])
+                return self._table_route(t, s, g, int(cs[i]), int(cg[j])), float(flat[k])
             if hidden >= _LAZY_TESTS:
                 # Many hidden ends: test every candidate left at once (the fans).
-                rows = np.flatnonzero(~seen_s & np.isfinite(total).any(1))
-                cols = np.flatnonzero(~seen_g & np.isfinite(total).any(0))
+                rows = np.flatnonzero(~np.array(seen_s) & np.isfinite(total).any(1))
+                cols = np.flatnonzero(~np.array(seen_g) & np.isfinite(total).any(0))
                 total[rows[self._fan_blocked(s, t.x[cs[rows]], t.y[cs[rows]])]] = np.inf
                 total[:, cols[self._fan_blocked(g, t.x[cg[cols]], t.y[cg[cols]])]] = np.inf
-                k = int(np.argmin(total))
-                if not math.isfinite(total.flat[k]):
+                k = int(total.argmin())
+                if not math.isfinite(flat[k]):
                     break
                 i, j = divmod(k, ng)
-                return self._table_route(t, s, g, int(cs[i]), int(cg[j])), float(total.flat[k])
+                return self._table_route(t, s, g, int(cs[i]), int(cg[j])), float(flat[k])
         if not (~self._fan_blocked(g, t.x[cg], t.y[cg])).any():
             raise NoRouteError("no route: the goal is enclosed (no corner sees it)")
         raise NoRouteError("no route: start and goal are not connected (search exhausted)")
 
-    def _tangent_from(self, t: "_CornerTable", p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The distances from p to the table's corners it may reach along a line tangent at the
-        corner, and their indices (seen or not)."""
-        dx, dy = t.x - p[0], t.y - p[1]
+    def _one_blocked(self, px: float, py: float, qx: float, qy: float) -> bool:
+        """Whether the segment p-q enters an enlarged obstacle: segment_free's test, on floats."""
+        if self._scan_polys is not None:
+            return self._scan(px, py, qx, qy, False)
+        return self._segment(px, py, qx, qy)[0]
+
+    def _tangents_from(self, t: "_CornerTable", s: np.ndarray, g: np.ndarray):
+        """For each of s and g: the distances to the table's corners it may reach along a line
+        tangent at the corner, and their indices (seen or not). Both ends in one pass of (2, C)
+        arrays."""
+        dx = t.x - np.array(((s[0],), (g[0],)), float)
+        dy = t.y - np.array(((s[1],), (g[1],)), float)
         d = np.hypot(dx, dy)
-        cand = np.flatnonzero(_not_cut(dx, dy, d, t.rpx, t.rpy, t.rnx, t.rny, self.eps))
-        return d[cand], cand
+        ok = _not_cut(dx, dy, d, t.rpx, t.rpy, t.rnx, t.rny, self.eps)
+        cs, cg = np.flatnonzero(ok[0]), np.flatnonzero(ok[1])
+        return (d[0, cs], cs), (d[1, cg], cg)
 
     @staticmethod
     def _table_route(t: "_CornerTable", s: np.ndarray, g: np.ndarray, a: int, b: int) -> np.ndarray:

@@ -7,6 +7,7 @@ used and the actual address printed or returned.
 
 from __future__ import annotations
 
+import gc
 import ipaddress
 import socket
 import threading
@@ -49,6 +50,16 @@ def bind(host: str, port: int) -> socket.socket:
 def address(sock: socket.socket) -> tuple[str, int]:
     host, port = sock.getsockname()[:2]
     return host, port
+
+
+def freeze_startup_objects() -> None:
+    """Move every object alive now (the modules, the application) out of the garbage collector's
+    reach (``gc.freeze``), for a process about to serve: a full collection otherwise walks them
+    all, and on the service benchmark each one (every few seconds under load) stopped the event
+    loop or a planning process for 35-45 ms, the slowest 1 % of the answers. They are freed by
+    reference counting as before; only reference cycles among them would stay."""
+    gc.collect()
+    gc.freeze()
 
 
 def make_server(app: Any, *, log_level: str = "warning", access_log: bool = False) -> Any:

@@ -276,4 +276,7 @@ class _Worker:
 
 def main(fd: int) -> None:
     """A planning process (``PlannerPool`` starts it): serve the socket on ``fd``."""
+    from .server import freeze_startup_objects
+
+    freeze_startup_objects()
     _serve(socket.socket(fileno=fd))
