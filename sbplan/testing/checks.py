@@ -165,6 +165,35 @@ def check_binarizer_bands(stage: Binarizer) -> None:
     assert np.array_equal(gray, floor.reference), f"binarizer {stage.name!r}: modified its input"
 
 
+def check_binarizer_locality(stage: Binarizer) -> None:
+    """What ``locality()`` promises holds (nothing to check when it returns None): on crops of the
+    tiny floor's scene (a shadow over it) whose corners lie on multiples of ``step``, ``binarize``
+    gives what it gives on the whole image farther than ``reach`` pixels from every side of the
+    crop that is not the image's."""
+    promise = stage.locality()
+    if promise is None:
+        return
+    reach, step = promise
+    assert isinstance(reach, (int, np.integer)) and isinstance(step, (int, np.integer)) and reach >= 0 and step >= 1, \
+        f"binarizer {stage.name!r}: locality() gave {promise!r}, expected (reach >= 0, step >= 1) integers"
+    scene = np.array(make_tiny_floor(condition="shadows").scene)
+    h, w = scene.shape[0] // step * step, scene.shape[1] // step * step
+    gray = scene[:h, :w]
+    whole = stage.binarize(gray)
+    for fx0, fy0, fx1, fy1 in ((0.1, 0.2, 0.8, 0.9), (0.0, 0.3, 0.6, 1.0), (0.4, 0.0, 1.0, 0.7)):
+        x0, x1 = int(fx0 * w) // step * step, int(fx1 * w) // step * step
+        y0, y1 = int(fy0 * h) // step * step, int(fy1 * h) // step * step
+        zx0, zy0 = (x0 + reach if x0 else 0), (y0 + reach if y0 else 0)
+        zx1, zy1 = (x1 - reach if x1 < w else w), (y1 - reach if y1 < h else h)
+        if zx1 <= zx0 or zy1 <= zy0:
+            continue  # a reach as large as the crop promises nothing here
+        crop = stage.binarize(gray[y0:y1, x0:x1])
+        differ = float((crop[zy0 - y0:zy1 - y0, zx0 - x0:zx1 - x0] != whole[zy0:zy1, zx0:zx1]).mean())
+        assert differ == 0.0, (f"binarizer {stage.name!r}: promises a reach of {reach} px (step {step}), but a crop "
+                               f"({x0}, {y0}, {x1}, {y1}) differs from the whole image on {differ:.1%} of the pixels "
+                               "that far inside it")
+
+
 # extractor
 
 def _closed_steps_ok(c: Contour) -> bool:
@@ -486,7 +515,7 @@ def check_planner_rejects_bad_start(stage: Planner, *, time_limit: float = 0.5) 
 
 
 CHECKS: dict[str, tuple[Callable[[Any], None], ...]] = {
-    "binarizer": (check_binarizer_output, check_binarizer_finds_ink, check_binarizer_bands),
+    "binarizer": (check_binarizer_output, check_binarizer_finds_ink, check_binarizer_bands, check_binarizer_locality),
     "extractor": (check_extractor_rectangle, check_extractor_hole, check_extractor_counts, check_extractor_empty,
                   check_extractor_outer),
     "approximator": (check_approximator_rectangle, check_approximator_near_contour, check_approximator_many),

@@ -10,7 +10,7 @@ import pytest
 from .. import registry
 from ..contracts import Stage
 from .checks import (check_approximator_many, check_approximator_near_contour, check_approximator_rectangle,
-                     check_binarizer_bands, check_binarizer_finds_ink, check_binarizer_output,
+                     check_binarizer_bands, check_binarizer_finds_ink, check_binarizer_locality, check_binarizer_output,
                      check_declaration, check_extractor_counts, check_extractor_empty, check_extractor_hole,
                      check_extractor_outer, check_extractor_rectangle, check_footprint_outlines, check_mapper,
                      check_matcher_descriptors, check_matcher_discriminates, check_matcher_distances,
@@ -61,6 +61,9 @@ class BinarizerContract(StageContract):
 
     def test_bands(self, stage):
         check_binarizer_bands(stage)
+
+    def test_locality(self, stage):
+        check_binarizer_locality(stage)
 
 
 class ExtractorContract(StageContract):
