@@ -341,6 +341,8 @@ class Detector:
             new.drop(gone)
             crop_bands = _crop_bands(bands, y0, y1, x1 - x0) if bands is not None else None
             if bands is not None and crop_bands is None:
+                if inside.any():
+                    return None  # (cannot be: a cell's symbol rows are in the bands)
                 continue  # no symbol row in this crop
             origin = np.array([x0, y0], np.float64)
             binary, polygons, hit, centres, areas, _, _ = self._symbols_in(whole_image[y0:y1, x0:x1], crop_bands, lap,
