@@ -441,24 +441,15 @@ def plot(result: dict[str, Any], *, width: int = 1600, height: int = 1000) -> np
 
 
 def run(args: argparse.Namespace) -> int:
-    import logging
-
     from sbplan.commands._progress import StderrProgress
 
-    # the camera conditions move the camera on purpose, and the tables report each movement's
-    # error: the detector's "camera moved" warnings would only interleave with the progress lines
-    def not_camera_warning(record: logging.LogRecord) -> bool:
-        return not (record.levelno == logging.WARNING and "camera" in getattr(record, "data", {}))
+    from ._logs import camera_warnings_muted
 
-    detector_log = logging.getLogger("sbplan.detection.detector")
-    detector_log.addFilter(not_camera_warning)
-    try:
-        with StderrProgress("bench detect") as progress:
-            result = measure(conditions=args.conditions, scenes=args.scenes, size=args.size, grid=args.grid,
-                             seed=args.seed, repeat=args.repeat, slow_scenes=args.slow_scenes,
-                             all_variants=args.variants == "all", progress=progress)
-    finally:
-        detector_log.removeFilter(not_camera_warning)
+    # the camera conditions move the camera on purpose, and the tables report each movement's error
+    with camera_warnings_muted(), StderrProgress("bench detect") as progress:
+        result = measure(conditions=args.conditions, scenes=args.scenes, size=args.size, grid=args.grid,
+                         seed=args.seed, repeat=args.repeat, slow_scenes=args.slow_scenes,
+                         all_variants=args.variants == "all", progress=progress)
     if args.plot:
         write_image(args.plot, plot(result))
     if args.json:

@@ -297,8 +297,10 @@ def format_tables(result: dict[str, Any]) -> str:
 
 def run(args: argparse.Namespace) -> int:
     from ..commands._progress import StderrProgress
+    from ._logs import camera_warnings_muted
 
-    with StderrProgress("bench watch") as progress:
+    # the stream bumps the camera on purpose: one warning per stream's detector would follow
+    with camera_warnings_muted(), StderrProgress("bench watch") as progress:
         result = measure(sizes=args.sizes, frames=args.frames, loops=args.loops, fps=args.fps,
                          streams=args.streams, hysteresis=args.hysteresis, seed=args.seed, progress=progress)
     if args.json:
