@@ -509,3 +509,41 @@ def test_the_core_and_the_cli_do_not_import_the_web_stack():
             "print(sorted(m for m in sys.modules if m.split('.')[0] in ('fastapi', 'uvicorn', 'starlette')))\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
+
+
+def test_kept_alive_answers_come_whole_a_head_request_and_a_websocket_included(cal):
+    """The server holds each response's head until its body's first write (one write, see
+    sbplan.service.onewrite): a HEAD answer (no body is ever written), the answers after it on
+    the same connection and a WebSocket upgrade must still arrive."""
+    import socket
+
+    def read_answer(sock, buf: bytes, *, body: bool) -> tuple[bytes, bytes, bytes]:
+        while b"\r\n\r\n" not in buf:
+            chunk = sock.recv(65536)
+            assert chunk, "the server closed the connection"
+            buf += chunk
+        head, _, rest = buf.partition(b"\r\n\r\n")
+        length = int(next(v for k, _, v in (h.partition(b": ") for h in head.split(b"\r\n")[1:])
+                          if k.lower() == b"content-length"))
+        n = length if body else 0
+        while len(rest) < n:
+            chunk = sock.recv(65536)
+            assert chunk, "the server closed the connection"
+            rest += chunk
+        return head, rest[:n], rest[n:]
+
+    with running(cal) as (url, _):
+        host, port = url.removeprefix("http://").rsplit(":", 1)
+        with socket.create_connection((host, int(port)), timeout=10) as sock:
+            buf = b""
+            for method in ("GET", "HEAD", "GET", "HEAD"):
+                sock.sendall(f"{method} /health HTTP/1.1\r\nHost: {host}\r\n\r\n".encode())
+                head, body, buf = read_answer(sock, buf, body=method == "GET")
+                # (HEAD: the service's routes answer GET only, with a JSON error of some length)
+                assert head.startswith(b"HTTP/1.1 200" if method == "GET" else b"HTTP/1.1 405"), head
+                assert b"content-length: 0" not in head.lower()
+                if method == "GET":
+                    assert json.loads(body)["status"] == "ok"
+            assert buf == b""  # a HEAD answer carries no body
+        with ws_connect(url) as ws:
+            assert receive(ws, types={"hello"})["type"] == "hello"

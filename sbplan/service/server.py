@@ -66,7 +66,13 @@ def make_server(app: Any, *, log_level: str = "warning", access_log: bool = Fals
     """A uvicorn server for ``app`` (uvloop and httptools when installed)."""
     import uvicorn  # the serve extra: the address helpers above work without it
 
-    config = uvicorn.Config(app, log_level=log_level, access_log=access_log, lifespan="on",
+    try:  # on httptools: each response's head and body in one write (see .onewrite)
+        from .onewrite import OneWriteProtocol
+
+        http: Any = OneWriteProtocol
+    except ImportError:  # no httptools: uvicorn's h11 protocol
+        http = "auto"
+    config = uvicorn.Config(app, http=http, log_level=log_level, access_log=access_log, lifespan="on",
                             ws_max_size=WS_MAX_MESSAGE, server_header=False, proxy_headers=False,
                             timeout_keep_alive=30, timeout_graceful_shutdown=5)
     return uvicorn.Server(config)
