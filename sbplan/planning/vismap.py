@@ -11,7 +11,7 @@ import copy
 import heapq
 import math
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Literal, Sequence
 
 import numpy as np
@@ -259,7 +259,7 @@ class VisibilityMap:
     def segment_free(self, p: XY, q: XY) -> bool:
         """True when the segment p-q enters no enlarged obstacle (touching is allowed)."""
         if self._scan_polys is not None:
-            return not self._scan(float(p[0]), float(p[1]), float(q[0]), float(q[1]), False)
+            return not self._scan(float(p[0]), float(p[1]), float(q[0]), float(q[1]))
         return not self._segment(float(p[0]), float(p[1]), float(q[0]), float(q[1]))[0]
 
     def straight_free(self, p: XY, q: XY) -> bool:
@@ -283,7 +283,9 @@ class VisibilityMap:
         with the end on its right."""
         px, py, qx, qy = float(p[0]), float(p[1]), float(q[0]), float(q[1])
         if self._scan_polys is not None:
-            return self._scan(px, py, qx, qy, True)
+            if self._ends_undecided(px, py, qx, qy):
+                return -1
+            return 0 if self._scan(px, py, qx, qy) else 1
         if len(self._ax) == 0:
             return 1
         blocked, o3, o4 = self._segment(px, py, qx, qy)
@@ -298,23 +300,16 @@ class VisibilityMap:
             return -1
         return 0 if blocked else 1
 
-    def _scan(self, px: float, py: float, qx: float, qy: float, ends: bool):
-        """The one-segment test (and, with ``ends``, the parity of straight_check) in plain
-        Python: on small maps a few dozen float operations cost less than the fixed overhead of
-        ~30 numpy calls. The same predicates, tolerances and products as _segment and the numpy
-        straight_check; bounding boxes only skip edges that cannot decide anything:
+    def _scan(self, px: float, py: float, qx: float, qy: float):
+        """The one-segment test in plain Python: on small maps a few dozen float operations cost
+        less than the fixed overhead of ~30 numpy calls. The same predicates, tolerances and
+        products as _segment; bounding boxes only skip polygons and chunks whose vertex box misses
+        the segment's box grown by 4 eps (a proper crossing, signs beyond the tolerances, far
+        above rounding, needs the segments to meet; a vertex on the segment lies within eps of
+        it), and polygons whose box lies beyond 2 eps|D| on one side of the segment's line.
 
-        - the segment part skips polygons and chunks whose vertex box misses the segment's box
-          grown by 4 eps (a proper crossing, signs beyond the tolerances, far above rounding,
-          needs the segments to meet; a vertex on the segment lies within eps of it), and
-          polygons whose box lies beyond 2 eps|D| on one side of the segment's line;
-        - the parity of an end skips polygons and chunks whose vertices' y-range [ymin, ymax)
-          does not hold the end's y: none of their edges straddles it (the half-open straddle
-          test is exact).
-
-        Without ``ends``: whether the segment is blocked, as False (free) or a true value: the
-        chunks of the polygon one of whose edges it properly crosses (see _blocker), or True (a
-        vertex's cone decided). With ``ends``: straight_check's -1 / 0 / 1.
+        Returns False when the segment is free, else a true value: the chunks of the polygon one
+        of whose edges it properly crosses (see _blocker), or True (a vertex's cone decided).
         """
         dx, dy = qx - px, qy - py
         L2 = dx * dx + dy * dy
@@ -329,103 +324,96 @@ class VisibilityMap:
             sy0, sy1 = py - pad, qy + pad
         else:
             sy0, sy1 = qy - pad, py + pad
-        seg, blocked, on, tested = True, False, None, 0
-        hp = hq = cpp = cqq = False
+        on, tested = None, 0
         # The segment's line, f(x, y) = D x ((x, y) - p) (o1 of a vertex): a polygon's box whose
         # corners all lie beyond 2 tol_s on one side (rounding is far below tol_s) holds no edge
         # that crosses the segment and no vertex on it.
         m = 2 * tol_s
         dxp, dyp = dx > 0, dy > 0
         for x0, y0, x1, y1, chunks in self._scan_polys or ():  # (called only when there are tables)
-            hs = seg and x0 <= sx1 and x1 >= sx0 and y0 <= sy1 and y1 >= sy0
-            if hs:
-                if dxp:
-                    fhi, flo = dx * (y1 - py), dx * (y0 - py)
-                else:
-                    fhi, flo = dx * (y0 - py), dx * (y1 - py)
-                if dyp:
-                    fhi, flo = fhi - dy * (x0 - px), flo - dy * (x1 - px)
-                else:
-                    fhi, flo = fhi - dy * (x1 - px), flo - dy * (x0 - px)
-                hs = flo <= m and fhi >= -m
-            if ends:
-                hp = y0 <= py < y1
-                hq = y0 <= qy < y1
-                if not (hs or hp or hq):
-                    continue
-            elif not hs:
+            if not (x0 <= sx1 and x1 >= sx0 and y0 <= sy1 and y1 >= sy0):
                 continue
-            cp = cq = False
+            if dxp:
+                fhi, flo = dx * (y1 - py), dx * (y0 - py)
+            else:
+                fhi, flo = dx * (y0 - py), dx * (y1 - py)
+            if dyp:
+                fhi, flo = fhi - dy * (x0 - px), flo - dy * (x1 - px)
+            else:
+                fhi, flo = fhi - dy * (x1 - px), flo - dy * (x0 - px)
+            if not (flo <= m and fhi >= -m):
+                continue
             for x0, y0, x1, y1, edges in chunks:
-                cs = hs and seg and x0 <= sx1 and x1 >= sx0 and y0 <= sy1 and y1 >= sy0
-                if ends:
-                    cpp = hp and y0 <= py < y1
-                    cqq = hq and y0 <= qy < y1
-                if cs:
-                    tested += len(edges)
-                    for ax, ay, by, ex, ey, te, up, i in edges:
-                        Ax, Ay = ax - px, ay - py
-                        o1 = dx * Ay - dy * Ax  # D x A
-                        De = dx * ey - dy * ex  # D x e
-                        o2 = o1 + De  # D x (A + e)
-                        o3 = None
-                        if o1 * o2 < 0:
-                            o3 = ey * Ax - ex * Ay  # e x (p - a)
-                            o4 = o3 - De  # e x (q - a)
-                            if o3 * o4 < 0 and abs(o1) > tol_s and abs(o2) > tol_s and abs(o3) > te and abs(o4) > te:
-                                if not ends:
-                                    self.stats["segment_pairs"] += tested
-                                    return chunks  # the blocking polygon: _blocker's hint
-                                seg = cs = False
-                                blocked = True
-                        if abs(o1) <= tol_s and not blocked:
-                            t = dx * Ax + dy * Ay
-                            if tol_s < t < L2 - tol_s:
-                                if on is None:
-                                    on = []
-                                on.append(i)
-                        if cpp and (ay > py) != (by > py):
-                            if o3 is None:
-                                o3 = ey * Ax - ex * Ay
-                            if abs(o3) <= te:
-                                return -1
-                            if (o3 > 0) == up:
-                                cp = not cp
-                        if cqq and (ay > qy) != (by > qy):
-                            if o3 is None:
-                                o3 = ey * Ax - ex * Ay
-                            o4 = o3 - De
-                            if abs(o4) <= te:
-                                return -1
-                            if (o4 > 0) == up:
-                                cq = not cq
-                elif cpp or cqq:
-                    # The parity alone: the cross products of the straddling edges only.
-                    for ax, ay, by, ex, ey, te, up, i in edges:
-                        if cpp and (ay > py) != (by > py):
-                            o3 = ey * (ax - px) - ex * (ay - py)
-                            if abs(o3) <= te:
-                                return -1
-                            if (o3 > 0) == up:
-                                cp = not cp
-                        if cqq and (ay > qy) != (by > qy):
-                            o4 = (ey * (ax - px) - ex * (ay - py)) - (dx * ey - dy * ex)
-                            if abs(o4) <= te:
-                                return -1
-                            if (o4 > 0) == up:
-                                cq = not cq
-            if cp or cq:
-                return -1
+                if not (x0 <= sx1 and x1 >= sx0 and y0 <= sy1 and y1 >= sy0):
+                    continue
+                tested += len(edges)
+                for ax, ay, by, ex, ey, te, up, i in edges:
+                    Ax, Ay = ax - px, ay - py
+                    o1 = dx * Ay - dy * Ax  # D x A
+                    De = dx * ey - dy * ex  # D x e
+                    o2 = o1 + De  # D x (A + e)
+                    if o1 * o2 < 0:
+                        o3 = ey * Ax - ex * Ay  # e x (p - a)
+                        o4 = o3 - De  # e x (q - a)
+                        if o3 * o4 < 0 and abs(o1) > tol_s and abs(o2) > tol_s and abs(o3) > te and abs(o4) > te:
+                            self.stats["segment_pairs"] += tested
+                            return chunks  # the blocking polygon: _blocker's hint
+                    if abs(o1) <= tol_s:
+                        t = dx * Ax + dy * Ay
+                        if tol_s < t < L2 - tol_s:
+                            if on is None:
+                                on = []
+                            on.append(i)
         self.stats["segment_pairs"] += tested
-        if on is not None and not blocked:
+        if on is not None:
             # A vertex strictly inside the segment (rare): the numpy cone test decides.
             ee = np.array(on)
             k = len(ee)
-            blocked = bool(_enters_cone(self, ee, np.full(k, dx), np.full(k, dy), self._ax[ee] - px,
-                                        self._ay[ee] - py).any())
-        if not ends:
-            return blocked
-        return 0 if blocked else 1
+            return bool(_enters_cone(self, ee, np.full(k, dx), np.full(k, dy), self._ax[ee] - px,
+                                     self._ay[ee] - py).any())
+        return False
+
+    def _ends_undecided(self, px: float, py: float, qx: float, qy: float) -> bool:
+        """straight_check's test of its ends, in plain Python on _scan's tables: True when p or q
+        is inside an enlarged obstacle or too close to an edge to decide (within eps of the line
+        of an edge that straddles its y). A ray-crossing parity per polygon over the edges that
+        straddle the end's y (the half-open straddle test is exact; the side test, e x (end - a),
+        is trusted only beyond eps from the edge's line, so the parity is exact whenever it is
+        used): a ray to +x crosses an upward edge with the end on its left (cross > 0), a
+        downward one with the end on its right. Polygons and chunks whose vertices' y-range
+        [ymin, ymax) does not hold the end's y are skipped: none of their edges straddles it.
+
+        e x (q - a) is computed as e x (p - a) - D x e, as the segment test computes it. Separate
+        from the segment test, which then stops at its first crossing (most straight lines of
+        the service's queries are blocked; a pass doing both had to go through every polygon)."""
+        dx, dy = qx - px, qy - py
+        for _, y0, _, y1, chunks in self._scan_polys or ():
+            hp = y0 <= py < y1
+            hq = y0 <= qy < y1
+            if not (hp or hq):
+                continue
+            cp = cq = False
+            for _, y0, _, y1, edges in chunks:
+                cpp = hp and y0 <= py < y1
+                cqq = hq and y0 <= qy < y1
+                if not (cpp or cqq):
+                    continue
+                for ax, ay, by, ex, ey, te, up, _ in edges:
+                    if cpp and (ay > py) != (by > py):
+                        o3 = ey * (ax - px) - ex * (ay - py)
+                        if abs(o3) <= te:
+                            return True
+                        if (o3 > 0) == up:
+                            cp = not cp
+                    if cqq and (ay > qy) != (by > qy):
+                        o4 = (ey * (ax - px) - ex * (ay - py)) - (dx * ey - dy * ex)
+                        if abs(o4) <= te:
+                            return True
+                        if (o4 > 0) == up:
+                            cq = not cq
+            if cp or cq:
+                return True
+        return False
 
     def _segment(self, px: float, py: float, qx: float, qy: float):
         """One segment p-q against every edge: (blocked, o3, o4), o3 and o4 per edge.
@@ -661,7 +649,7 @@ class VisibilityMap:
         # Python lists and floats in the loop: numpy scalar reads cost more than the argmin.
         seen_s, seen_g = [False] * ns, [False] * ng
         sx, sy, gx, gy = float(s[0]), float(s[1]), float(g[0]), float(g[1])
-        xs, ys, xg, yg = t.x[cs].tolist(), t.y[cs].tolist(), t.x[cg].tolist(), t.y[cg].tolist()
+        xl, yl, csl, cgl = t.xl, t.yl, cs.tolist(), cg.tolist()
         blocker = self._blocker
         hint_s = hint_g = None  # what blocked the last hidden end's segment, each end's
         hidden = 0
@@ -671,7 +659,7 @@ class VisibilityMap:
                 break
             i, j = divmod(k, ng)
             if not seen_s[i]:
-                hit = blocker(sx, sy, xs[i], ys[i], hint_s)
+                hit = blocker(sx, sy, xl[csl[i]], yl[csl[i]], hint_s)
                 if hit:
                     total[i] = np.inf
                     hidden += 1
@@ -679,7 +667,7 @@ class VisibilityMap:
                 else:
                     seen_s[i] = True
             if seen_s[i] and not seen_g[j]:
-                hit = blocker(gx, gy, xg[j], yg[j], hint_g)
+                hit = blocker(gx, gy, xl[cgl[j]], yl[cgl[j]], hint_g)
                 if hit:
                     total[:, j] = np.inf
                     hidden += 1
@@ -687,7 +675,7 @@ class VisibilityMap:
                 else:
                     seen_g[j] = True
             if seen_s[i] and seen_g[j]:
-                return self._table_route(t, s, g, int(cs[i]), int(cg[j])), float(flat[k])
+                return self._table_route(t, s, g, csl[i], cgl[j]), float(flat[k])
             if hidden >= _LAZY_TESTS:
                 # Many hidden ends: test every candidate left at once (the fans).
                 rows = np.flatnonzero(~np.array(seen_s) & np.isfinite(total).any(1))
@@ -730,7 +718,7 @@ class VisibilityMap:
                         o4 = o3 - De
                         if o3 * o4 < 0 and abs(o1) > tol_s and abs(o2) > tol_s and abs(o3) > te and abs(o4) > te:
                             return hint
-        return self._scan(px, py, qx, qy, False)
+        return self._scan(px, py, qx, qy)
 
     def _tangents_from(self, t: "_CornerTable", s: np.ndarray, g: np.ndarray):
         """For each of s and g: the distances to the table's corners it may reach along a line
@@ -916,6 +904,13 @@ class _CornerTable:
     rny: np.ndarray
     dist: np.ndarray
     nxt: np.ndarray
+    #: ``x`` and ``y`` as Python lists (a query's few one-segment tests read single corners)
+    xl: list = field(init=False, repr=False)
+    yl: list = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "xl", self.x.tolist())
+        object.__setattr__(self, "yl", self.y.tolist())
 
 
 def _ring_edges(polygons: Sequence[Polygon]):
