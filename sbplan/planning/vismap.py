@@ -723,25 +723,36 @@ class VisibilityMap:
     def _tangents_from(self, t: "_CornerTable", s: np.ndarray, g: np.ndarray):
         """For each of s and g: the distances to the table's corners it may reach along a line
         tangent at the corner, and their indices (seen or not). Both ends in one pass of (2, C)
-        arrays."""
-        dx = t.x - np.array(((s[0],), (g[0],)), float)
-        dy = t.y - np.array(((s[1],), (g[1],)), float)
+        arrays.
+
+        _not_cut's products and comparisons, in fewer numpy calls (in place; "not (max > tol and
+        min < -tol)" as "max <= tol or min >= -tol": the same for the finite values here): 25
+        against 32 us per query on the service benchmark's floor, the same corners."""
+        e = np.array(((s[0],), (g[0],), (s[1],), (g[1],)), float)
+        dx = t.x - e[:2]
+        dy = t.y - e[2:]
         d = np.hypot(dx, dy)
-        ok = _not_cut(dx, dy, d, t.rpx, t.rpy, t.rnx, t.rny, self.eps)
-        cs, cg = np.flatnonzero(ok[0]), np.flatnonzero(ok[1])
-        return (d[0, cs], cs), (d[1, cg], cg)
+        a = dx * t.rpy
+        a -= dy * t.rpx
+        b = dx * t.rny
+        b -= dy * t.rnx
+        tol = self.eps * d
+        hi = np.maximum(a, b)
+        lo = np.minimum(a, b, out=a)
+        ok = (hi <= tol) | (lo >= np.negative(tol, out=b))
+        cs, cg = ok[0].nonzero()[0], ok[1].nonzero()[0]
+        return (d[0][cs], cs), (d[1][cg], cg)
 
     @staticmethod
     def _table_route(t: "_CornerTable", s: np.ndarray, g: np.ndarray, a: int, b: int) -> np.ndarray:
         """s, the table's shortest route from corner a to corner b, g: shape (M, 2)."""
-        path = [a]
-        nxt = t.nxt
-        while path[-1] != b:
-            path.append(int(nxt[path[-1], b]))
-        wp = np.empty((len(path) + 2, 2))
-        wp[0], wp[-1] = s, g
-        wp[1:-1, 0], wp[1:-1, 1] = t.x[path], t.y[path]
-        return wp
+        xl, yl, nxt = t.xl, t.yl, t.nxt
+        pts = [(float(s[0]), float(s[1])), (xl[a], yl[a])]
+        while a != b:
+            a = int(nxt[a, b])
+            pts.append((xl[a], yl[a]))
+        pts.append((float(g[0]), float(g[1])))
+        return np.array(pts)
 
     def shortest_path(self, start: XY, goal: XY, *, should_stop=None,
                       straight_blocked: bool = False) -> tuple[np.ndarray, float]:
