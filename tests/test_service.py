@@ -511,11 +511,16 @@ def test_the_core_and_the_cli_do_not_import_the_web_stack():
     assert out.strip() == "[]"
 
 
-def test_kept_alive_answers_come_whole_a_head_request_and_a_websocket_included(cal):
+def test_kept_alive_answers_come_whole_a_head_request_and_a_websocket_included(cal, monkeypatch):
     """The server holds each response's head until its body's first write (one write, see
     sbplan.service.onewrite): a HEAD answer (no body is ever written), the answers after it on
-    the same connection and a WebSocket upgrade must still arrive."""
+    the same connection, a body too large to be joined to its head (the limit lowered so that
+    the OpenAPI document is one) and a WebSocket upgrade must still arrive."""
     import socket
+
+    from sbplan.service import onewrite
+
+    monkeypatch.setattr(onewrite, "_JOIN_MAX", 1024)
 
     def read_answer(sock, buf: bytes, *, body: bool) -> tuple[bytes, bytes, bytes]:
         while b"\r\n\r\n" not in buf:
@@ -536,14 +541,17 @@ def test_kept_alive_answers_come_whole_a_head_request_and_a_websocket_included(c
         host, port = url.removeprefix("http://").rsplit(":", 1)
         with socket.create_connection((host, int(port)), timeout=10) as sock:
             buf = b""
-            for method in ("GET", "HEAD", "GET", "HEAD"):
-                sock.sendall(f"{method} /health HTTP/1.1\r\nHost: {host}\r\n\r\n".encode())
+            for method, path in (("GET", "/health"), ("HEAD", "/health"), ("GET", "/openapi.json"),
+                                 ("GET", "/health"), ("HEAD", "/health")):
+                sock.sendall(f"{method} {path} HTTP/1.1\r\nHost: {host}\r\n\r\n".encode())
                 head, body, buf = read_answer(sock, buf, body=method == "GET")
                 # (HEAD: the service's routes answer GET only, with a JSON error of some length)
                 assert head.startswith(b"HTTP/1.1 200" if method == "GET" else b"HTTP/1.1 405"), head
                 assert b"content-length: 0" not in head.lower()
-                if method == "GET":
+                if path == "/health" and method == "GET":
                     assert json.loads(body)["status"] == "ok"
+                elif method == "GET":
+                    assert len(body) > 1024 and json.loads(body)["paths"]
             assert buf == b""  # a HEAD answer carries no body
         with ws_connect(url) as ws:
             assert receive(ws, types={"hello"})["type"] == "hello"

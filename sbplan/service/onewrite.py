@@ -23,6 +23,10 @@ from typing import Any
 from uvicorn.protocols.http.httptools_impl import HttpToolsProtocol
 
 
+#: Body parts up to this size are joined to the held head (a copy); larger ones follow it.
+_JOIN_MAX = 1 << 16
+
+
 def _announces_body(data: bytes) -> bool:
     """Whether ``data`` is a whole response head (as uvicorn writes it: lower-case header names,
     one write) with a Content-Length above 0, i.e. a body write follows."""
@@ -46,7 +50,11 @@ class HeldHeadTransport:
         head = self._head
         if head is not None:
             self._head = None
-            self.transport.write(head + bytes(data))
+            if len(data) > _JOIN_MAX:  # a large body: not worth copying to save a call
+                self.transport.write(head)
+                self.transport.write(data)
+            else:
+                self.transport.write(head + bytes(data))
         elif _announces_body(bytes(data)):
             self._head = bytes(data)
         else:
