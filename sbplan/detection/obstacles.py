@@ -158,7 +158,11 @@ def mar_opencv(points: np.ndarray) -> np.ndarray:
     Built from ``cv2.boxPoints`` (not from the angle, whose range and width/height swap depend on
     OpenCV's version and the orientation).
     """
-    pts = as_points(points, name="points", min_points=1).astype(np.float32)
+    return _box_points(as_points(points, name="points", min_points=1).astype(np.float32))
+
+
+def _box_points(pts: np.ndarray) -> np.ndarray:
+    """mar_opencv on checked points, float32 (K, 2)."""
     return cv2.boxPoints(cv2.minAreaRect(pts)).astype(np.float64)
 
 
@@ -339,8 +343,7 @@ def _area(rect: np.ndarray) -> float:
 def _piece_mar_area(piece: Polygon) -> float:
     """The area of the MAR of a piece's exterior (mar_opencv's rectangle, without its input
     checks: the cut search's own polygons)."""
-    coords = shapely.get_coordinates(piece.exterior)[:-1].astype(np.float32)
-    return _area(cv2.boxPoints(cv2.minAreaRect(coords)).astype(np.float64))
+    return _area(_box_points(shapely.get_coordinates(piece.exterior)[:-1].astype(np.float32)))
 
 
 def _best_cut(p: Polygon, rect: np.ndarray) -> list[Polygon] | None:
