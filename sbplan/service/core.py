@@ -36,7 +36,6 @@ import concurrent.futures
 import itertools
 import threading
 import time
-from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Any, Callable
 
@@ -52,12 +51,9 @@ from ..planning import PlanningMap, detection_obstacles, plan
 from . import images, models
 from .errors import BusyError, NoFrameError, UnknownRouteError, status_and_code
 from .state import RouteRecord, Snapshot, State, obstacle_key, route_model
-from .workers import PlannerPool
+from ..planning.plan_replan import MapCache
+from .workers import MAPS_KEPT, PlannerPool, prepared_map
 
-
-#: Planning maps kept (one per frame and robot size): routes of a few robot sizes on the current
-#: frame, and the previous frame's while its routes are checked.
-MAPS_KEPT = 8
 
 
 class OutEvent:
@@ -147,7 +143,7 @@ class Service:
         self._write_lock = threading.Lock()
         self._writer: int | None = None
         self._route_ids = itertools.count(1)
-        self._maps: OrderedDict[tuple[int, float, float], PlanningMap] = OrderedDict()  # state thread only
+        self._maps = MapCache(MAPS_KEPT)  # used on the state thread only
         self._seq = 0
         self._pending = 0
         self._listeners: list[Callable[[OutEvent], None]] = []
@@ -362,18 +358,13 @@ class Service:
         """The snapshot's planning map for a robot size, built once and kept for the next queries
         (its visibility cache fills as they come): plan() given a list of polygons would check and
         hash all of them again on every request."""
-        key = (snap.frame, radius, margin)
-        pmap = self._maps.get(key)
-        if pmap is None:
-            pmap = self._maps[key] = PlanningMap(snap.obstacles, robot_radius=radius, margin=margin, bounds=snap.bounds)
-            # the service asks many routes of one map: its corner-to-corner table once (tens of
-            # ms on a 50-obstacle floor), then a query costs the visibility of its two ends
-            pmap.prepare_routes()
-            while len(self._maps) > MAPS_KEPT:
-                self._maps.popitem(last=False)
+        if self._planners is not None and self._planners.alive:
+            # route requests are planned in the planning processes, which build the table; here
+            # only the replans a new frame or a request asks for: no table (A* on the map)
+            build = lambda: PlanningMap(snap.obstacles, robot_radius=radius, margin=margin, bounds=snap.bounds)  # noqa: E731
         else:
-            self._maps.move_to_end(key)
-        return pmap
+            build = lambda: prepared_map(snap.obstacles, radius, margin, snap.bounds)  # noqa: E731
+        return self._maps.get((snap.frame, radius, margin), build)
 
     def _create_route(self, req: models.RouteRequest) -> models.Route:
         self._check_thread()

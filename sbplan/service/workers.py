@@ -40,8 +40,11 @@ import numpy as np
 
 from ..errors import PluginError, SbplanError
 from ..planning import PlanningMap, Route, plan
+from ..planning.plan_replan import MapCache
 
-#: Frames a worker keeps the obstacles of, and planning maps it keeps (frame x robot size).
+#: Frames a worker keeps the obstacles of, and planning maps it (and the service's state thread)
+#: keeps, one per frame and robot size: routes of a few robot sizes on the current frame, and the
+#: previous frame's while its routes are checked.
 FRAMES_KEPT, MAPS_KEPT = 4, 8
 
 
@@ -82,10 +85,19 @@ def _messages(sock: socket.socket):
         yield from _unframe(buf)
 
 
+def prepared_map(obstacles: Any, radius: float, margin: float, bounds: Any) -> PlanningMap:
+    """A frame's planning map for a robot size, with its corner-to-corner table: the service asks
+    many routes of one map, so the table is built once (tens of ms on a 50-obstacle floor) and a
+    query then costs the visibility of its two ends."""
+    pmap = PlanningMap(obstacles, robot_radius=radius, margin=margin, bounds=bounds)
+    pmap.prepare_routes()
+    return pmap
+
+
 def _serve(sock: socket.socket) -> None:
     """A worker's loop: frames and queries in, answers out, until ``None`` or the socket closes."""
     frames: OrderedDict[int, tuple] = OrderedDict()
-    maps: OrderedDict[tuple, PlanningMap] = OrderedDict()
+    maps = MapCache(MAPS_KEPT)
     for msg in _messages(sock):
         if msg is None:
             return
@@ -97,16 +109,8 @@ def _serve(sock: socket.socket) -> None:
             continue
         _, job, frame, radius, margin, start, goal, planner, time_limit = msg
         try:
-            key = (frame, radius, margin)
-            pmap = maps.get(key)
-            if pmap is None:
-                obstacles, bounds = frames[frame]
-                pmap = maps[key] = PlanningMap(obstacles, robot_radius=radius, margin=margin, bounds=bounds)
-                pmap.prepare_routes()
-                while len(maps) > MAPS_KEPT:
-                    maps.popitem(last=False)
-            else:
-                maps.move_to_end(key)
+            obstacles, bounds = frames[frame]
+            pmap = maps.get((frame, radius, margin), lambda: prepared_map(obstacles, radius, margin, bounds))
             r = plan(pmap, start, goal, planner=planner, time_limit=time_limit)
             # the waypoints as raw float64 bytes: pickling the array costs ~25 us a reply
             wp = np.ascontiguousarray(r.waypoints, dtype=np.float64).tobytes()
