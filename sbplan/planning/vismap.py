@@ -258,9 +258,7 @@ class VisibilityMap:
 
     def segment_free(self, p: XY, q: XY) -> bool:
         """True when the segment p-q enters no enlarged obstacle (touching is allowed)."""
-        if self._scan_polys is not None:
-            return not self._scan(float(p[0]), float(p[1]), float(q[0]), float(q[1]))
-        return not self._segment(float(p[0]), float(p[1]), float(q[0]), float(q[1]))[0]
+        return not self._blocker(float(p[0]), float(p[1]), float(q[0]), float(q[1]))
 
     def straight_free(self, p: XY, q: XY) -> bool:
         """True when p and q are certainly not inside any enlarged obstacle (outside, or on a
@@ -692,7 +690,7 @@ class VisibilityMap:
         raise NoRouteError("no route: start and goal are not connected (search exhausted)")
 
     def _blocker(self, px: float, py: float, qx: float, qy: float, hint=None):
-        """Whether the segment p-q enters an enlarged obstacle (segment_free's test, on floats):
+        """Whether the segment p-q enters an enlarged obstacle (segment_free's test on floats):
         False, or a true value; with _scan's tables the blocking polygon's chunks when one of its
         edges is properly crossed (else True).
 
