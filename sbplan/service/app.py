@@ -145,11 +145,9 @@ def create_app(service: Service, *, token: str | None = None, source: FrameSourc
               openapi_extra=_json_body(models.RouteRequest))
     async def create_route(request: Request) -> Response:
         """Plan a route on the current obstacles (exact shortest route for a disc robot)."""
-        # The hot path (robots ask for routes): the body is validated by the model directly and
-        # the answer serialized once, without FastAPI's dependency and response machinery, which
-        # cost more CPU than a warm query on a 50-obstacle floor.
-        route = await service.create_route(_parse(models.RouteRequest, await request.body()))
-        return Response(route.model_dump_json(), status_code=201, media_type="application/json")
+        # Answered by Guard._create_route before FastAPI sees the request (the hot path: robots
+        # ask for routes); this route only documents it in the OpenAPI schema.
+        raise AssertionError("POST /routes is answered by the Guard in front of the application")
 
     @app.get("/routes", response_model=models.RouteList, responses=_ERRORS, tags=["routes"])
     async def list_routes(owner: models.Owner | None = Query(None, description="only this owner's")) -> models.RouteList:
@@ -189,17 +187,9 @@ def create_app(service: Service, *, token: str | None = None, source: FrameSourc
 
 
 def _json_body(model: type[BaseModel]) -> dict:
-    """OpenAPI for a JSON body a handler parses itself (see :func:`_parse`)."""
+    """OpenAPI for a JSON body a handler parses itself (POST /routes: Guard._create_route)."""
     return {"requestBody": {"required": True, "content": {"application/json": {
         "schema": {"$ref": f"#/components/schemas/{model.__name__}"}}}}}
-
-
-def _parse(model: type[BaseModel], body: bytes) -> Any:
-    """The body as ``model``; errors as FastAPI reports them (400 malformed JSON, 422 invalid)."""
-    try:
-        return model.model_validate_json(body)
-    except ValidationError as exc:
-        raise RequestValidationError(_body_errors(exc)) from None
 
 
 def _body_errors(exc: ValidationError) -> list[dict]:
@@ -239,6 +229,16 @@ def _error(status: int, code: str, message: str, **extra: Any) -> JSONResponse:
                         status_code=status)
 
 
+def _sbplan_error(exc: SbplanError) -> tuple[int, models.Error]:
+    """The status and the body an SbplanError is answered with."""
+    status, code = status_and_code(exc)
+    return status, models.Error(code=code, message=str(exc))
+
+
+#: A bug's answer: the log gets the traceback, the client one line.
+_INTERNAL = models.Error(code="internal-error", message="internal error; the server's log has the details")
+
+
 def _invalid(errors: Sequence[Any]) -> tuple[int, models.Error]:
     """A request that failed validation (FastAPI's error list): 400 malformed JSON, else 422."""
     bad_json = [e for e in errors if e.get("type") == "json_invalid"]
@@ -256,8 +256,8 @@ def _invalid(errors: Sequence[Any]) -> tuple[int, models.Error]:
 def _error_handlers(app: FastAPI) -> None:
     @app.exception_handler(SbplanError)
     async def sbplan_error(request: Request, exc: SbplanError) -> JSONResponse:
-        status, code = status_and_code(exc)
-        return _error(status, code, str(exc))
+        status, error = _sbplan_error(exc)
+        return JSONResponse(error.model_dump(exclude_none=True), status_code=status)
 
     @app.exception_handler(RequestValidationError)
     async def invalid(request: Request, exc: RequestValidationError) -> JSONResponse:
@@ -273,7 +273,7 @@ def _error_handlers(app: FastAPI) -> None:
     async def internal(request: Request, exc: Exception) -> JSONResponse:
         # a bug: the log gets the traceback, the client one line
         log.error("%s %s failed", request.method, request.url.path, exc_info=exc)
-        return _error(500, "internal-error", "internal error; the server's log has the details")
+        return JSONResponse(_INTERNAL.model_dump(exclude_none=True), status_code=500)
 
 
 def _document_auth(app: FastAPI) -> None:
@@ -307,8 +307,7 @@ class Guard:
     and the body size (``Content-Length`` checked first, then the bytes as they arrive), before
     FastAPI reads or parses anything."""
 
-    def __init__(self, app: FastAPI, *, token: str | None, max_body: int, max_json: int,
-                 service: Service | None = None):
+    def __init__(self, app: FastAPI, *, token: str | None, max_body: int, max_json: int, service: Service):
         self.app, self.token = app, token
         self.max_body, self.max_json = max_body, max_json
         self.service = service
@@ -333,7 +332,7 @@ class Guard:
                 return await _send_json(send, 400, models.Error(code="bad-request", message="Content-Length is not a number"))
             if int(length) > limit:
                 return await _send_json(send, 413, _too_large(limit, int(length)))
-        if self.service is not None and scope["path"] == "/routes" and scope["method"] == "POST":
+        if scope["path"] == "/routes" and scope["method"] == "POST":
             return await self._create_route(receive, send, limit)
         seen = 0
 
@@ -351,9 +350,8 @@ class Guard:
     async def _create_route(self, receive: Any, send: Any, limit: int) -> None:
         """POST /routes, the hot path (robots ask for routes), answered here without FastAPI's
         routing, dependencies and responses: on the service benchmark they cost ~1 ms of CPU per
-        request, more than the planning. The same answers as the FastAPI route (which stays for
-        the OpenAPI document): the body validated by the model, errors as the handlers give them."""
-        assert self.service is not None  # only called with a service
+        request, more than the planning. The FastAPI route only documents it; the body is
+        validated by the model, errors are answered as the handlers answer them."""
         chunks = []
         seen = 0
         while True:
@@ -372,12 +370,10 @@ class Guard:
         except ValidationError as exc:
             return await _send_json(send, *_invalid(_body_errors(exc)))
         except SbplanError as exc:
-            status, code = status_and_code(exc)
-            return await _send_json(send, status, models.Error(code=code, message=str(exc)))
+            return await _send_json(send, *_sbplan_error(exc))
         except Exception:
             log.exception("POST /routes failed")
-            return await _send_json(send, 500, models.Error(code="internal-error",
-                                                            message="internal error; the server's log has the details"))
+            return await _send_json(send, 500, _INTERNAL)
         body = route.model_dump_json().encode()
         await send({"type": "http.response.start", "status": 201,
                     "headers": [(b"content-type", b"application/json"), (b"content-length", str(len(body)).encode())]})
