@@ -125,6 +125,14 @@ class Detector:
         # frames are reduced by the calibration's working factor before their contours are traced
         # (sbplan.detection.working); bands, binary image and contours are in working pixels
         self.work = WorkScale(cal.work_scale, cal.image_shape)
+        # find_cells_local's (reach, step): how far the binarizer's mask looks, in working pixels,
+        # and the crop alignment it needs; None when it promises nothing or the working image is
+        # not made of whole steps (then every changed frame is detected whole)
+        locality = getattr(self.binarizer, "locality", None)
+        reach_step = locality() if locality is not None else None
+        wh, ww = self.work.work_shape
+        self._locality = None if reach_step is None or wh % int(reach_step[1]) or ww % int(reach_step[1]) \
+            else (int(reach_step[0]), int(reach_step[1]))
         self._symbol_size = float(np.sqrt(np.median(areas))) if len(areas) else 0.0
         self._band_margin = max(BAND_MARGIN_PX, BAND_MARGIN * self._symbol_size) if len(areas) else 0.0
         # each symbol's bounding box corners, whose rows the bands must hold (cell, 4 corners, xy)
@@ -299,17 +307,15 @@ class Detector:
             :meth:`find_cells` gives, possibly in another order.
         """
         last = self._last
-        locality = getattr(self.binarizer, "locality", None)
-        reach_step = locality() if locality is not None else None
-        if last is None or reach_step is None:
+        if last is None or self._locality is None:
             return None
         lap = _Laps()
         timings, t0 = lap.timings, lap.t0
         gray = as_gray(image, name="image")
         work, motion = self.work, self.motion
-        reach, step = (int(v) for v in reach_step)
+        reach, step = self._locality
         wh, ww = work.work_shape
-        if gray.shape != tuple(self.calibration.image_shape) or wh % step or ww % step:
+        if gray.shape != tuple(self.calibration.image_shape):
             return None
         boxes = np.asarray(changed, dtype=np.float64).reshape(-1, 4)
         if not len(boxes):
