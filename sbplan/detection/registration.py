@@ -615,22 +615,30 @@ def grey_centres(gray: np.ndarray, boxes: np.ndarray, side: int) -> np.ndarray:
     inside = (x0 >= 0) & (y0 >= 0) & (x0 + side <= w) & (y0 + side <= h)
     if not inside.any():
         return out
-    # one copy of each window's rows (a fancy index per pixel costs 25 times more)
-    win = np.lib.stride_tricks.sliding_window_view(gray, (side, side))[y0[inside], x0[inside]].astype(np.float32)
-    ring = np.concatenate([win[:, 0, :], win[:, -1, :], win[:, 1:-1, 0], win[:, 1:-1, -1]], axis=1)
-    floor = ring.mean(axis=1)
-    # the weights in place of the window's copy, and the total from the column sums: two passes
-    # over the windows fewer than the plain expressions
-    wt = np.subtract((floor - CENTRE_FLOOR_NOISE)[:, None, None], win, out=win)
-    np.maximum(wt, 0, out=wt)
-    columns = wt.sum(axis=1)
-    total = columns.sum(axis=1)
+    xs, ys = x0[inside], y0[inside]
+    n = len(xs)
+    # each window's rows copied by a slice (a gather through a strided view costs twice as much),
+    # straight into the float32 array the weights are computed in
+    win = np.empty((n, side, side), np.float32)
+    for i, (x, y) in enumerate(zip(xs.tolist(), ys.tolist())):
+        win[i] = gray[y:y + side, x:x + side]
+    ring = (win[:, 0, :].sum(axis=1) + win[:, -1, :].sum(axis=1) + win[:, 1:-1, 0].sum(axis=1)
+            + win[:, 1:-1, -1].sum(axis=1))
+    level = ring / np.float32(4 * side - 4) - np.float32(CENTRE_FLOOR_NOISE)
+    # the weights in place of the window's copy
+    wt = np.subtract(level[:, None, None], win, out=win)
+    np.maximum(wt, np.float32(0), out=wt)
+    # the sums as matrix-vector products over the stacked rows (numpy's axis sums over a 3-D
+    # array cost several times more)
+    rows_of = wt.reshape(n * side, side)
     r = np.arange(side, dtype=np.float32)
-    cx = (columns @ r) / np.maximum(total, 1e-6)
-    cy = (wt.sum(axis=2) @ r) / np.maximum(total, 1e-6)
+    row_sums = (rows_of @ np.ones(side, np.float32)).reshape(n, side)
+    x_moment = (rows_of @ r).reshape(n, side).sum(axis=1)
+    total = row_sums.sum(axis=1)
+    y_moment = row_sums @ r
     good = total > 0
-    res = np.full((int(inside.sum()), 2), np.nan)
-    res[good, 0] = x0[inside][good] + cx[good]
-    res[good, 1] = y0[inside][good] + cy[good]
+    res = np.full((n, 2), np.nan)
+    res[good, 0] = xs[good] + x_moment[good] / total[good]
+    res[good, 1] = ys[good] + y_moment[good] / total[good]
     out[inside] = res
     return out
