@@ -269,3 +269,31 @@ def test_a_stream_logs_the_movement_warning_once_not_every_frame(calibration, ca
     with caplog.at_level("WARNING", logger="sbplan"):
         detector.find_cells(image)
     assert sum("camera moved since calibration" in r.getMessage() for r in caplog.records) == 1
+
+
+# A grid laid close to the frame's sides: a camera that moved pushes the outer column partly out of view.
+EDGE_FLOOR = FloorSpec(width=800, height=600, cols=8, rows=5, margin=(30, 60), symbol_size=40)
+EDGE_SHIFT = {"motion": (-20.0, 0.0, 0.0, 1.0)}  # the left column's symbols lose a few pixels
+
+
+@pytest.fixture(scope="module")
+def edge_calibration() -> Calibration:
+    return calibrate(render_reference(EDGE_FLOOR, seed=0))
+
+
+def test_symbols_pushed_partly_out_of_view_are_not_called_occupied(edge_calibration):
+    left = np.array([p[:, 0].min() for p in edge_calibration.symbol_polygons]).min()
+    assert left + EDGE_SHIFT["motion"][0] < 0  # (the scene does what the test is about)
+    image, truth = render_scene(EDGE_FLOOR, SceneSpec(n_obstacles=0, effects=EDGE_SHIFT), seed=1)
+    cells = Detector(edge_calibration).find_cells(image)
+    assert not cells.occupied.any()
+    assert abs(cells.camera.shift_px[0] + 20.0) <= 0.2
+
+
+def test_an_object_on_a_partly_seen_symbol_still_occupies_its_cell(edge_calibration):
+    cx, cy = EDGE_FLOOR.col_x[0], EDGE_FLOOR.row_y[2]
+    box = np.array([[cx - 2, cy - 30], [cx + 40, cy - 30], [cx + 40, cy + 30], [cx - 2, cy + 30]])
+    image, truth = render_scene(EDGE_FLOOR, SceneSpec(obstacles=[box], effects=EDGE_SHIFT), seed=1)
+    cells = Detector(edge_calibration).find_cells(image)
+    assert truth.cells[2, 0] == 1
+    assert score_cells(cells.occupied, truth.cells).f1 == 1.0

@@ -492,8 +492,15 @@ class Detector:
             ex, ey = self._probes(missing, motion)
             factors = self._edge_factors[missing]
             kept = edge_kept(gray, ex, ey, factors)
+            probed = factors < EDGE_UNPROBED
+            # A camera that moved can push a symbol at the frame's edge partly out of view: its
+            # outline no longer matches, and the frame has nothing to say where it left. Such a
+            # cell is judged by the part of its edge in view, when that is most of it.
+            cut = _out_of_view(ex, ey, gray.shape) if motion.moved else None
+            if cut is not None:
+                kept, probed = kept | cut, probed & ~cut
             intact = intact_edges(kept, max_break=self._scratch_points[missing], gap=self._break_gap[missing],
-                                  probed=factors < EDGE_UNPROBED)
+                                  probed=probed)
             last.intact[missing] = intact
             # ... or shows it once the thin scratches across it are painted over (wear), asked of
             # a few cells only: an obstacle over a symbol breaks much of its edge, scratches a few
@@ -502,6 +509,11 @@ class Detector:
             # (the symbols whose edge shows at every point: what a matcher that does not fit the
             # floor leaves unmatched; scratched symbols break their edge here and there)
             last.plain[missing] = kept.all(axis=1)
+            if cut is not None:
+                # (the scratch repair reads a whole symbol's window; a partly seen one is not for it)
+                partial = cut.any(axis=1)
+                last.broken[missing] &= ~partial
+                last.plain[missing] &= ~partial
         broken = np.flatnonzero(last.broken)
         rescued = last.intact
         if 0 < len(broken) <= SCRATCH_CELLS:
@@ -710,6 +722,24 @@ class Detector:
             timings["footprint"] = (time.perf_counter() - t) * 1e3
         return obstacles_from_outlines(outlines, occupied, cal.grid, to_world=cal.pixels_to_world,
                                        to_pixels=cal.world_to_pixels)
+
+
+#: A cell whose symbol the camera's movement put partly out of the frame is judged by the edge
+#: points in view when at least this share of them is (else it stays occupied: unseen is not free).
+IN_VIEW_SHARE = 0.5
+
+
+def _out_of_view(x: np.ndarray, y: np.ndarray, shape: tuple[int, int]) -> np.ndarray | None:
+    """Of edge probes ``x``, ``y`` (n, 2, S) in frame pixels, the points (n, S) whose inner or outer
+    probe lies outside a frame of ``shape`` (H, W) (with the pixel that bilinear reading needs), on
+    outlines that keep at least :data:`IN_VIEW_SHARE` of their points in view; None when every
+    point is in view."""
+    h, w = shape
+    if x.size == 0 or (x.min() >= 1 and y.min() >= 1 and x.max() <= w - 2 and y.max() <= h - 2):
+        return None
+    out = ((x < 1) | (y < 1) | (x > w - 2) | (y > h - 2)).any(axis=1)
+    out &= (out.mean(axis=1) <= 1.0 - IN_VIEW_SHARE)[:, None]
+    return out if out.any() else None
 
 
 def _outlines_check(v: Any) -> str | None:
