@@ -85,6 +85,12 @@ TRIM_SIGMAS = 3.0
 TRIM_FLOOR_PX = 0.25
 #: Pairing: a centre more than this fraction of a pitch from the nearest cell is not paired.
 PAIR_PITCH = 0.4
+#: Where the similarity explains the symbols' outline centres no better than this (RMS, pixels),
+#: or does not explain enough of them, a homography is tried on the pairs too (a camera that
+#: sagged or tilted on its mount since calibration: a tilt of 1 deg moves the corners of a
+#: 1280 x 960 view by about 10 px against its centre, which no similarity follows). Outline
+#: centres fit a similarity to 0.1-0.3 px where it holds.
+HOMOGRAPHY_TRY_PX = 0.5
 #: RANSAC is skipped when every pair agrees with the least-squares fit and that fit moves no cell
 #: more than this fraction of a pitch from the coarse estimate (pairing again would change nothing).
 FAST_PITCH = 0.05
@@ -244,6 +250,42 @@ def _trimmed_fit(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return matrix, keep, math.sqrt(float(resid @ resid) / len(resid))
 
 
+def _homography_lsq(src: np.ndarray, dst: np.ndarray) -> np.ndarray | None:
+    """The least-squares homography ``dst ~ H src`` (normalised so that ``H[2, 2] = 1``), or None
+    when the pairs do not determine one."""
+    if len(src) < 4:
+        return None
+    h, _ = cv2.findHomography(src, dst, 0)
+    if h is None or not np.isfinite(h).all() or abs(h[2, 2]) < 1e-12:
+        return None
+    return h / h[2, 2]
+
+
+def _trimmed_homography(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, np.ndarray, float] | None:
+    """:func:`_trimmed_fit` with a homography: the fit, the mask of the pairs kept and their RMS,
+    or None when the pairs do not determine a homography."""
+    matrix = _homography_lsq(src, dst)
+    if matrix is None:
+        return None
+    resid = _distances(apply(matrix, src), dst)
+    keep = resid <= max(TRIM_FLOOR_PX, TRIM_SIGMAS * 1.4826 * median(resid))
+    if HOMOGRAPHY_MIN_SYMBOLS <= int(np.count_nonzero(keep)) < len(keep):
+        refit = _homography_lsq(src[keep], dst[keep])
+        if refit is not None:
+            matrix = refit
+            resid = _distances(apply(matrix, src[keep]), dst[keep])
+        else:
+            keep = np.ones(len(src), bool)
+    else:
+        keep = np.ones(len(src), bool)
+    return matrix, keep, math.sqrt(float(resid @ resid) / len(resid))
+
+
+def _projective(matrix: np.ndarray) -> bool:
+    """Does ``matrix`` (3x3) have a perspective part (a last row other than ``(0, 0, 1)``)?"""
+    return bool(matrix[2, 0] or matrix[2, 1])
+
+
 def register(centres_px: np.ndarray, grid: "Grid", image_shape: tuple[int, int], *,
              hint: np.ndarray | None = None, seed: int = 0, reference_thumbnail: np.ndarray | None = None,
              frame: np.ndarray | None = None) -> CameraMotion:
@@ -307,57 +349,114 @@ def register_pairs(centres_px: np.ndarray, grid: "Grid", image_shape: tuple[int,
     if fast is not None:
         # every pair moves together, close to the coarse estimate: nothing for RANSAC to reject,
         # and pairing again with the fit would pair the same cells
-        matrix, keep, rms = fast
+        matrix, keep, rms, model = fast
         inliers = np.flatnonzero(paired)[keep]
         return _finish(matrix, rms, inliers, flat, finite, cells, grid, image_shape, pitch,
-                       reference_thumbnail, frame)
+                       reference_thumbnail, frame, model)
+    need = max(MIN_SYMBOLS, MIN_INLIER_SHARE * n_paired)
     cv2.setRNGSeed(int(seed))
     m2, _ = cv2.estimateAffinePartial2D(ref[flat[paired]], centres[paired], method=cv2.RANSAC,
                                         ransacReprojThreshold=inlier_px, maxIters=500, confidence=0.999,
                                         refineIters=0)
-    if m2 is None:
-        raise CameraMotionError(f"cannot estimate the camera's movement: the {n_paired} symbols found do not "
-                                f"move together; recalibrate on the empty floor (sbplan calibrate)")
-    matrix = np.vstack([m2, [0.0, 0.0, 1.0]])
-    # pair again with the fitted movement (a centre near half a pitch from the hint's cell finds its
-    # own), keep the inliers and refit them in closed form
-    flat = _pair(centres, grid, np.linalg.inv(matrix), pitch)
-    ok = np.flatnonzero(flat >= 0)
-    resid = np.linalg.norm(apply(matrix, ref[flat[ok]]) - centres[ok], axis=1)
-    inliers = ok[resid <= inlier_px]
-    if len(inliers) < max(MIN_SYMBOLS, MIN_INLIER_SHARE * n_paired):
-        raise CameraMotionError(f"cannot estimate the camera's movement: only {len(inliers)} of the {n_paired} "
+    best = None  # (matrix, rms, inliers, flat, model)
+    found = 0
+    if m2 is not None:
+        # pair again with the fitted movement (a centre near half a pitch from the hint's cell finds
+        # its own), keep the inliers and refit them in closed form
+        matrix = np.vstack([m2, [0.0, 0.0, 1.0]])
+        flat_s, inliers = _inliers(matrix, centres, grid, ref, pitch, inlier_px)
+        found = len(inliers)
+        if len(inliers) >= need:
+            matrix, keep, rms = _trimmed_fit(ref[flat_s[inliers]], centres[inliers])
+            best = (matrix, rms, inliers[keep], flat_s, "similarity")
+    if best is None or best[1] > HOMOGRAPHY_TRY_PX:
+        # a camera that tilted since calibration: no similarity follows the whole view
+        tilted = _homography_pairs(ref[flat[paired]], centres[paired], centres, grid, ref, pitch, inlier_px, seed)
+        if tilted is not None:
+            matrix, rms, inliers, flat_h = tilted
+            found = max(found, len(inliers))
+            if len(inliers) >= need and (best is None or (len(inliers) >= len(best[2])
+                                                          and rms < HOMOGRAPHY_GAIN * best[1])):
+                best = (matrix, rms, inliers, flat_h, "homography")
+    if best is None:
+        if m2 is None and not found:
+            raise CameraMotionError(f"cannot estimate the camera's movement: the {n_paired} symbols found do not "
+                                    f"move together; recalibrate on the empty floor (sbplan calibrate)")
+        raise CameraMotionError(f"cannot estimate the camera's movement: only {found} of the {n_paired} "
                                 f"symbols found near their cells move together; the view changed or the calibration "
                                 f"is another camera's or floor's; recalibrate on the empty floor (sbplan calibrate)")
-    matrix, keep, rms = _trimmed_fit(ref[flat[inliers]], centres[inliers])
-    return _finish(matrix, rms, inliers[keep], flat, finite, cells, grid, image_shape, pitch,
-                   reference_thumbnail, frame)
+    matrix, rms, inliers, flat, model = best
+    return _finish(matrix, rms, inliers, flat, finite, cells, grid, image_shape, pitch,
+                   reference_thumbnail, frame, model)
+
+
+def _inliers(matrix: np.ndarray, centres: np.ndarray, grid: "Grid", ref: np.ndarray, pitch: float,
+             inlier_px: float) -> tuple[np.ndarray, np.ndarray]:
+    """The centres paired again under ``matrix`` (each one's cell, -1 for none) and the indices of
+    those within ``inlier_px`` of their cell's moved centre."""
+    flat = _pair(centres, grid, np.linalg.inv(matrix), pitch)
+    ok = np.flatnonzero(flat >= 0)
+    resid = _distances(apply(matrix, ref[flat[ok]]), centres[ok])
+    return flat, ok[resid <= inlier_px]
+
+
+def _homography_pairs(src: np.ndarray, dst: np.ndarray, centres: np.ndarray, grid: "Grid", ref: np.ndarray,
+                      pitch: float, inlier_px: float, seed: int
+                      ) -> tuple[np.ndarray, float, np.ndarray, np.ndarray] | None:
+    """A homography fitted robustly to the pairs ``src`` -> ``dst`` (RANSAC, seeded), the centres
+    paired again with it and its inliers refitted (trimmed least squares): the matrix, the RMS,
+    the inliers (indices of ``centres``) and the pairing; None with fewer than
+    :data:`HOMOGRAPHY_MIN_SYMBOLS` pairs or no fit."""
+    if len(src) < HOMOGRAPHY_MIN_SYMBOLS:
+        return None
+    cv2.setRNGSeed(int(seed))
+    h, _ = cv2.findHomography(src, dst, cv2.RANSAC, inlier_px, maxIters=500, confidence=0.999)
+    if h is None or not np.isfinite(h).all() or abs(h[2, 2]) < 1e-12:
+        return None
+    flat, inliers = _inliers(h / h[2, 2], centres, grid, ref, pitch, inlier_px)
+    if len(inliers) < HOMOGRAPHY_MIN_SYMBOLS:
+        return None
+    fit = _trimmed_homography(ref[flat[inliers]], centres[inliers])
+    if fit is None:
+        return None
+    matrix, keep, rms = fit
+    return matrix, rms, inliers[keep], flat
 
 
 def _agreeing_fit(src: np.ndarray, dst: np.ndarray, hint: np.ndarray, inlier_px: float,
-                  pitch: float) -> tuple[np.ndarray, np.ndarray, float] | None:
+                  pitch: float) -> tuple[np.ndarray, np.ndarray, float, str] | None:
     """The trimmed least-squares fit of the pairs when all of them agree with it within
     ``inlier_px`` and it lies within :data:`FAST_PITCH` of a pitch of ``hint`` everywhere, else
-    None (RANSAC must sort the pairs). A camera that moves little between frames takes this path:
-    one symbol in a wrong place lies far off any fit and sends the frame to RANSAC."""
-    matrix, keep, rms = _trimmed_fit(src, dst)
+    None (RANSAC must sort the pairs): the matrix, the mask of the pairs kept, their RMS and the
+    model. The fit is a similarity, or a homography when ``hint`` is one (a tilted camera's last
+    pose). A camera that moves little between frames takes this path: one symbol in a wrong place
+    lies far off any fit and sends the frame to RANSAC."""
+    fit: tuple[np.ndarray, np.ndarray, float] | None
+    model = "similarity"
+    if _projective(hint) and len(src) >= HOMOGRAPHY_MIN_SYMBOLS:
+        fit, model = _trimmed_homography(src, dst), "homography"
+    else:
+        fit = _trimmed_fit(src, dst)
+    if fit is None:
+        return None
+    matrix, keep, rms = fit
     moved = apply(matrix, src)
     if float(_distances(moved, dst).max()) > inlier_px:
         return None
     if float(np.abs(moved - apply(hint, src)).max()) > FAST_PITCH * pitch:
         return None
-    return matrix, keep, rms
+    return matrix, keep, rms, model
 
 
 def _finish(matrix: np.ndarray, rms: float, inliers: np.ndarray, flat: np.ndarray, finite: np.ndarray,
-            cells: np.ndarray, grid: "Grid", image_shape, pitch: float, reference_thumbnail, frame
-            ) -> tuple[CameraMotion, np.ndarray]:
+            cells: np.ndarray, grid: "Grid", image_shape, pitch: float, reference_thumbnail, frame,
+            model: str = "similarity") -> tuple[CameraMotion, np.ndarray]:
     """register_pairs' last steps: the whole-pitch ambiguity resolved, the motion checked against
     the limits, the inliers' cells recorded."""
     matrix, ambiguous = _resolve_pitch(matrix, _pitch_ambiguity(flat[inliers], grid), grid,
                                        reference_thumbnail, frame)
     # (a movement a whole pitch away that the texture chose is refused here as too large)
-    motion = _motion(matrix, rms, len(inliers), "similarity", image_shape, grid, pitch, ambiguous)
+    motion = _motion(matrix, rms, len(inliers), model, image_shape, grid, pitch, ambiguous)
     cells[finite[inliers]] = flat[inliers]
     return motion, cells
 
@@ -390,9 +489,16 @@ def refine(centres_px: np.ndarray, cells: np.ndarray, cell_centres_px: np.ndarra
     if ok.sum() < MIN_SYMBOLS:
         return coarse
     src, dst = cell_centres_px[cells[ok]], centres_px[ok]
-    matrix, keep, rms = _trimmed_fit(src, dst)
-    model = "similarity"
-    if keep.sum() >= HOMOGRAPHY_MIN_SYMBOLS and rms > HOMOGRAPHY_MIN_RESIDUAL_PX:
+    tilted = _trimmed_homography(src, dst) if coarse.model == "homography" else None
+    if tilted is not None:
+        # (the outlines already showed a view no similarity follows: its trimming would drop the
+        # corners that show it)
+        matrix, keep, rms = tilted
+        model = "homography"
+    else:
+        matrix, keep, rms = _trimmed_fit(src, dst)
+        model = "similarity"
+    if model == "similarity" and keep.sum() >= HOMOGRAPHY_MIN_SYMBOLS and rms > HOMOGRAPHY_MIN_RESIDUAL_PX:
         h, _ = cv2.findHomography(src[keep], dst[keep], 0)
         if h is not None and np.isfinite(h).all() and abs(h[2, 2]) > 1e-12:
             h = h / h[2, 2]

@@ -130,18 +130,41 @@ def motion_matrix(width: int, height: int, motion) -> np.ndarray:
     return m
 
 
+def view_change(width: int, height: int, motion=None, sag=None) -> np.ndarray | None:
+    """The 3x3 map from the calibrated view's pixels to the pixels of a camera that moved by
+    ``motion`` (:func:`motion_matrix`) after it tilted by ``sag`` ``(about_x, about_y)`` degrees
+    about the image centre (a perspective change: a homography), or None when neither is given."""
+    if motion is None and sag is None:
+        return None
+    m = motion_matrix(width, height, motion if motion is not None else (0.0, 0.0, 0.0, 1.0))
+    if sag is not None:
+        m = m @ _homography(int(width), int(height), (float(sag[0]), float(sag[1])))
+    return m / m[2, 2]
+
+
+def _apply(matrix: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    """``xy`` (..., 2) mapped by the 3x3 ``matrix``, with the projective division."""
+    q = xy @ matrix[:2, :2].T + matrix[:2, 2]
+    w = xy @ matrix[2, :2] + matrix[2, 2]
+    return q / w[..., None]
+
+
 def moved_view(floor_image: np.ndarray, camera: Camera, matrix: np.ndarray) -> np.ndarray:
     """What ``camera`` moved by ``matrix`` (:func:`motion_matrix`) sees of ``floor_image`` (the
     floor plane, the image's size), in one interpolation: each moved pixel reads the floor point
     the calibrated camera saw there."""
     h, w = floor_image.shape[:2]
     inv = np.linalg.inv(matrix)
+    projective = bool(matrix[2, 0] or matrix[2, 1])
     if camera.identity:
         # warpAffine takes the forward map and reads dst(p) = src(matrix^-1 p)
+        if projective:
+            return cv2.warpPerspective(floor_image, matrix.astype(np.float64), (w, h), flags=cv2.INTER_LINEAR,
+                                       borderMode=cv2.BORDER_REFLECT)
         return cv2.warpAffine(floor_image, matrix[:2].astype(np.float64), (w, h), flags=cv2.INTER_LINEAR,
                               borderMode=cv2.BORDER_REFLECT)
     ys, xs = np.mgrid[0:h, 0:w].astype(np.float64)
-    p = np.stack([xs, ys], axis=-1) @ inv[:2, :2].T + inv[:2, 2]
+    p = _apply(inv, np.stack([xs, ys], axis=-1))
     f = camera.image_to_floor(p)
     return cv2.remap(floor_image, f[..., 0].astype(np.float32), f[..., 1].astype(np.float32), cv2.INTER_LINEAR,
                      borderMode=cv2.BORDER_REFLECT)

@@ -63,6 +63,10 @@ class Effects:
         Floor wear after calibration, 0..1: thin scratches of floor colour across symbols (1 to 3 px
         wide), dark dirt specks (1 to 3 px) and dark tyre marks on the floor between symbols.
         Cells stay free: wear is not an obstacle.
+    sag : (float, float) or None
+        The camera tilted since calibration by ``(about_x, about_y)`` degrees (it sagged on its
+        mount): a perspective change of the view about the image centre, composed after ``motion``
+        (:func:`sbplan.synth.camera.view_change`). Scenes only, like ``motion``.
     shade : (float, float, polygon) or None
         A shadow cast by something outside the obstacles (a person walking past a lamp):
         ``(darkness, blur_px, outline)`` darkens the floor inside ``outline`` (``(K, 2)`` floor
@@ -86,6 +90,7 @@ class Effects:
     vibration: float = 0.0
     drift: float = 0.0
     wear: float = 0.0
+    sag: Any = None
     shade: Any = None
 
     def __post_init__(self) -> None:
@@ -107,6 +112,14 @@ class Effects:
             if max(abs(a), abs(b)) > 15:
                 raise SceneError(f"effects.tilt: at most 15 degrees, got {self.tilt!r}")
             object.__setattr__(self, "tilt", (a, b))
+        if self.sag is not None:
+            try:
+                a, b = (float(x) for x in self.sag)
+            except (TypeError, ValueError):
+                raise SceneError(f"effects.sag: expected (about_x, about_y) degrees, got {self.sag!r}") from None
+            if max(abs(a), abs(b)) > 5:
+                raise SceneError(f"effects.sag: at most 5 degrees, got {self.sag!r}")
+            object.__setattr__(self, "sag", (a, b))
         if self.distortion is not None and not (-0.3 <= float(self.distortion) <= 0.3):
             raise SceneError(f"effects.distortion: must lie in [-0.3, 0.3], got {self.distortion!r}")
         if self.motion is not None:
@@ -136,10 +149,11 @@ class Effects:
             d["tilt"] = list(d["tilt"])
         # camera movement and wear came later: left out at their defaults, so that the ground
         # truth of scenes without them reads as it always did
-        for key, default in (("motion", None), ("vibration", 0.0), ("drift", 0.0), ("wear", 0.0), ("shade", None)):
+        for key, default in (("motion", None), ("vibration", 0.0), ("drift", 0.0), ("wear", 0.0), ("sag", None),
+                             ("shade", None)):
             if d[key] == default:
                 del d[key]
-            elif key == "motion":
+            elif key in ("motion", "sag"):
                 d[key] = list(d[key])
             elif key == "shade":
                 d[key] = {"darkness": d[key][0], "blur_px": d[key][1], "outline": [list(p) for p in d[key][2]]}
@@ -178,6 +192,9 @@ _TABLE: dict[str, tuple[str, dict[str, Any]]] = {
                  {"motion": (-3.0, 2.0, 0.0, 0.99)}),
     "vibration": ("random camera movement per scene: up to 8 px, 0.5 deg and 1 % zoom", {"vibration": 1.0}),
     "drift": ("slow drift: a point of a path to (6, -3) px, 0.4 deg, +0.8 % per scene", {"drift": 1.0}),
+    "sag": ("camera tilted by 1.5 deg about x and 1.5 deg about y since calibration (it sagged on its mount: "
+            "a perspective change no similarity follows), plus random vibration",
+            {"sag": (1.5, 1.5), "vibration": 1.0}),
     # The floor wore after calibration.
     "worn": ("scratches across symbols, dirt specks and dark tyre marks between symbols", {"wear": 1.0}),
     "worn-moved": ("worn floor, shadows and a camera moved by (-5, 3) px and 0.3 deg",

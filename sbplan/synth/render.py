@@ -20,7 +20,7 @@ from shapely.geometry import Polygon
 
 from ..errors import SceneError
 from .aruco import aruco_pattern
-from .camera import Camera, motion_matrix, moved_view
+from .camera import Camera, _apply, moved_view, view_change
 from .conditions import Effects, condition_effects
 from .floor import FloorSpec, SceneSpec, rings_centroid
 from .obstacles import coverage, outline, texture, window
@@ -266,9 +266,9 @@ def render_scene(floor: FloorSpec, scene: SceneSpec | None = None, *, seed: int 
         sub += (tex - sub) * a
         np.maximum(alpha_sum[y0:y0 + h, x0:x0 + w], a, out=alpha_sum[y0:y0 + h, x0:x0 + w])
     union_alpha = alpha_sum if polys else None
-    img, draws = _expose(refl, effects, floor, cam, r_light, r_noise, union_alpha,
-                         None if motion is None else motion_matrix(floor.width, floor.height, motion))
-    truth = _truth(floor, scene, effects, cam, footprints, polys, kinds, textures, seed, draws, motion)
+    view = view_change(floor.width, floor.height, motion, effects.sag)
+    img, draws = _expose(refl, effects, floor, cam, r_light, r_noise, union_alpha, view)
+    truth = _truth(floor, scene, effects, cam, footprints, polys, kinds, textures, seed, draws, motion, view)
     return img, truth
 
 
@@ -402,7 +402,7 @@ def _densify(p: np.ndarray, step: float) -> np.ndarray:
 
 def _truth(floor: FloorSpec, scene: SceneSpec, effects: Effects, cam: Camera, footprints: tuple[np.ndarray, ...],
            polys: list[np.ndarray], kinds: list[str], textures: list[str], seed: int, draws: dict[str, Any],
-           motion: Motion | None) -> GroundTruth:
+           motion: Motion | None, view: np.ndarray | None) -> GroundTruth:
     rows, cols = floor.rows, floor.cols
     syms = np.array([Polygon(f[0], f[1:]) for f in footprints], dtype=object)
     overlap = np.zeros(len(syms))
@@ -427,12 +427,13 @@ def _truth(floor: FloorSpec, scene: SceneSpec, effects: Effects, cam: Camera, fo
             centres[i], _ = rings_centroid([cam.floor_to_image(r + c) for r in dense])
         obstacles = [cam.floor_to_image(_densify(p, 3.0)) for p in polys]
     camera = {"tilt_deg": list(cam.tilt), "distortion_k1": cam.distortion, "homography": cam.h.tolist()}
-    if motion is not None:
-        m = motion_matrix(floor.width, floor.height, motion)
-        centres = centres @ m[:2, :2].T + m[:2, 2]
-        obstacles = [p @ m[:2, :2].T + m[:2, 2] for p in obstacles]
-        camera["motion"] = {"shift_px": [motion[0], motion[1]], "rotation_deg": motion[2], "scale": motion[3],
-                            "matrix": m.tolist()}
+    if view is not None:
+        centres = _apply(view, centres)
+        obstacles = [_apply(view, p) for p in obstacles]
+        dx, dy, rot, scale = motion if motion is not None else (0.0, 0.0, 0.0, 1.0)
+        camera["motion"] = {"shift_px": [dx, dy], "rotation_deg": rot, "scale": scale, "matrix": view.tolist()}
+        if effects.sag is not None:
+            camera["motion"]["sag_deg"] = list(effects.sag)
     params = {
         "seed": int(seed), "floor": floor.to_dict(), "scene": scene.to_dict(), "effects": effects.to_dict(),
         "occupied_fraction": scene.occupied_fraction, "near_px": scene.near_px,
