@@ -283,3 +283,28 @@ def test_a_moved_camera_keeps_its_footprints():
         recall[motion] = total.recall
     still = recall.pop(None)
     assert all(r >= still - 0.002 for r in recall.values()), (still, recall)
+
+
+def test_the_moved_frame_is_read_as_its_full_resolution_warp():
+    """The moved frame's blocks (box means sampled where the blocks moved) are the block means of
+    the frame warped at its full resolution: exactly under a translation, within a grey level
+    under the camera's small turns and zooms."""
+    from sbplan.detection.footprints import _in_calibration
+    from sbplan.detection.registration import CameraMotion
+
+    rng = np.random.default_rng(3)
+    gray = cv2.GaussianBlur((rng.random((240, 320)) * 255).astype(np.uint8), (0, 0), 1.5)
+    gray = cv2.normalize(gray, None, 0, 255, cv2.NORM_MINMAX)
+    box = (3, 4, 70, 52)  # small pixels: x0, y0, x1, y1
+    for angle, scale, tol in ((0.0, 1.0, 1e-3), (0.5, 1.01, 1.0)):
+        m = cv2.getRotationMatrix2D((160.0, 120.0), angle, scale)
+        m[:, 2] += (0.7, -0.4)
+        camera = CameraMotion(np.vstack([m, (0, 0, 1)]), (0.7, -0.4), angle, scale, 0.0, 0, 1.0, "similarity")
+        x0, y0, x1, y1 = box
+        shift = np.array([[1.0, 0, 4 * x0], [0, 1.0, 4 * y0], [0, 0, 1.0]])
+        full = cv2.warpAffine(gray.astype(np.float32), (camera.matrix @ shift)[:2], (4 * (x1 - x0), 4 * (y1 - y0)),
+                              flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP, borderMode=cv2.BORDER_REPLICATE)
+        blocks = full.reshape(y1 - y0, 4, x1 - x0, 4).mean(axis=(1, 3))
+        got = _in_calibration(gray, camera, 4, box)
+        assert got.shape == blocks.shape
+        assert np.abs(got - blocks).max() < tol, (angle, np.abs(got - blocks).max())
