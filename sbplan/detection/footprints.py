@@ -125,6 +125,16 @@ class FootprintReference:
         Each cell's corners at the small scale.
     grid_area : ndarray (h, w), bool
         The cells' union: footprints stop at the floor's edge.
+    quads_fixed : ndarray (rows, cols, 4, 2), int32
+        ``cell_quads`` in OpenCV's fixed point (4 fractional bits), ready to fill.
+    floor_seed_ij : ndarray (2, K), int64
+        Small pixels ``(i, j)`` of every symbol's ink core and of its outline's outer probes: floor
+        when its cell is free.
+    floor_seed_cell : ndarray (K,), int64
+        The (flat) cell of each of them.
+    probe_ij : ndarray (2, cells, 3, S), int64
+        Small pixels ``(i, j)`` of each outline point's inner probe, outer probe and obstacle seed
+        beyond it (:data:`OBSTACLE_SEED_PX`).
     """
 
     scale: int
@@ -141,6 +151,10 @@ class FootprintReference:
     factors: np.ndarray
     cell_quads: np.ndarray
     grid_area: np.ndarray
+    quads_fixed: np.ndarray
+    floor_seed_ij: np.ndarray
+    floor_seed_cell: np.ndarray
+    probe_ij: np.ndarray
 
 
 def _small(xy: np.ndarray, scale: int) -> np.ndarray:
@@ -196,9 +210,28 @@ def footprint_reference(calibration) -> FootprintReference | None:
     ring = np.concatenate([corners[0, :], corners[1:, -1], corners[-1, -2::-1], corners[-2:0:-1, 0]])
     near_ink = cv2.dilate(ink, np.ones((7, 7), np.uint8)) > 0
     reference = thumb.astype(np.float32)
+    # what each frame marks, in small pixels, found once: the free symbols' floor seeds ...
+    outer_i, outer_j = _small_pixel(x[:, 1], y[:, 1], scale)
+    seed_i = np.concatenate([np.concatenate([c // shape[1] for c in cores]), outer_i.ravel()])
+    seed_j = np.concatenate([np.concatenate([c % shape[1] for c in cores]), outer_j.ravel()])
+    seed_cell = np.concatenate([np.repeat(np.arange(n), [len(c) for c in cores]),
+                                np.repeat(np.arange(n), x.shape[-1])])
+    # ... and the outline points' probes and the obstacle seeds beyond them
+    out = OBSTACLE_SEED_PX / (2 * EDGE_DEPTH_PX)
+    ox = x[:, 1] + out * (x[:, 1] - x[:, 0])
+    oy = y[:, 1] + out * (y[:, 1] - y[:, 0])
+    probe = np.stack([np.stack(_small_pixel(px, py, scale), axis=1)
+                      for px, py in ((x[:, 0], y[:, 0]), (x[:, 1], y[:, 1]), (ox, oy))], axis=2)
     return FootprintReference(scale, reference, grown, near_ink, weight, weight_sum, paint, cores,
                               cv2.log(np.maximum(reference, np.float32(1))), x, y,
-                              edge_factors(cal.edge_contrast), quads, _fill(shape, [ring]) > 0)
+                              edge_factors(cal.edge_contrast), quads, _fill(shape, [ring]) > 0,
+                              np.rint(quads * 16).astype(np.int32), np.stack([seed_i, seed_j]), seed_cell,
+                              np.moveaxis(probe, 1, 0))
+
+
+def _small_pixel(x: np.ndarray, y: np.ndarray, scale: int) -> tuple[np.ndarray, np.ndarray]:
+    """The small image's pixels ``(i, j)`` holding the calibration points ``x``, ``y``."""
+    return np.floor(y / scale).astype(np.int64), np.floor(x / scale).astype(np.int64)
 
 
 def _downsample(gray: np.ndarray, scale: int, shape: tuple[int, int]) -> np.ndarray:
@@ -366,13 +399,17 @@ def pixel_outlines(gray: np.ndarray, occupied: np.ndarray, reference: FootprintR
     near = cv2.dilate(occupied.astype(np.uint8), np.ones((2 * k + 1, 2 * k + 1), np.uint8)) > 0
     # the window: the ROI's bounding box and a pixel more (cv2.boundingRect reads the mask at
     # C speed; np.nonzero of the whole image cost more than the ROI's fill)
-    roi = _fill((h, w), list(ref.cell_quads[near]))
-    bx, by, bw, bh = cv2.boundingRect(roi)
+    near_cells = np.zeros((h, w), np.uint8)
+    cv2.fillPoly(near_cells, list(ref.quads_fixed[near]), 1, cv2.LINE_8, shift=4)
+    bx, by, bw, bh = cv2.boundingRect(near_cells)
     x0, y0 = max(bx - 1, 0), max(by - 1, 0)
     x1, y1 = min(bx + bw + 1, w), min(by + bh + 1, h)
     win = (slice(y0, y1), slice(x0, x1))
-    roi = roi[win] > 0
-    occ = _fill((h, w), list(ref.cell_quads[occupied]))[win] > 0
+    roi = near_cells[win] > 0
+    occ_cells = np.zeros((y1 - y0, x1 - x0), np.uint8)
+    # (the offset is in the points' fixed point, like them)
+    cv2.fillPoly(occ_cells, list(ref.quads_fixed[occupied]), 1, cv2.LINE_8, shift=4, offset=(-16 * x0, -16 * y0))
+    occ = occ_cells > 0
     # a movement under a quarter pixel is under 1/16 of a small pixel: not worth a warp
     camera = CameraMotion.none() if camera is None else camera
     moved = camera.moved
@@ -395,12 +432,8 @@ def pixel_outlines(gray: np.ndarray, occupied: np.ndarray, reference: FootprintR
     markers[~roi] = 1
     # free symbols' ink and the floor just around their outlines
     free = ~occupied.ravel()
-    free_idx = np.flatnonzero(free)
-    cores = np.concatenate([ref.ink_cores[i] for i in free_idx]) if len(free_idx) else np.zeros(0, np.int64)
-    ci, cj = np.divmod(cores, w)
-    keep = (ci >= y0) & (ci < y1) & (cj >= x0) & (cj < x1)
-    markers[ci[keep] - y0, cj[keep] - x0] = 1
-    _mark(markers, ref.probe_x[free_idx, 1], ref.probe_y[free_idx, 1], s, (x0, y0), 1)
+    fi, fj = ref.floor_seed_ij[:, free[ref.floor_seed_cell]]
+    _mark(markers, fi, fj, (x0, y0), 1)
     # occupied cells' outlines: runs of hidden points (obstacle), runs of visible ones (floor)
     occ_idx = np.flatnonzero(occupied.ravel())
     px, py = ref.probe_x[occ_idx], ref.probe_y[occ_idx]
@@ -411,8 +444,9 @@ def pixel_outlines(gray: np.ndarray, occupied: np.ndarray, reference: FootprintR
         fx, fy = px, py
     kept = edge_kept(gray, fx, fy, ref.factors[occ_idx])
     visible, hidden = _runs(kept, SEED_RUN), _runs(~kept, SEED_RUN)
-    _mark(markers, px[:, 0][visible], py[:, 0][visible], s, (x0, y0), 1)
-    _mark(markers, px[:, 1][visible], py[:, 1][visible], s, (x0, y0), 1)
+    pi, pj = ref.probe_ij[:, occ_idx]
+    _mark(markers, pi[:, 0][visible], pj[:, 0][visible], (x0, y0), 1)
+    _mark(markers, pi[:, 1][visible], pj[:, 1][visible], (x0, y0), 1)
     # an obstacle's print: texture the floor does not have, inside occupied cells
     if texture_seed > 0:
         raw = cv2.log(np.maximum(frame, np.float32(1)))
@@ -425,19 +459,20 @@ def pixel_outlines(gray: np.ndarray, occupied: np.ndarray, reference: FootprintR
         printed = _opened(printed, PRINT_OPEN, PRINT_OPEN - 6)
         # a printed area that reaches into an occupied cell, all of it: the print runs on where
         # the obstacle reaches beyond its cells
-        n, labels = cv2.connectedComponents(printed, connectivity=8)
-        if n > 1:
+        # (in the printed areas' box: a lookup over the whole window cost more than the rest)
+        px0, py0, pw, ph = cv2.boundingRect(printed)
+        if pw:
+            box = (slice(py0, py0 + ph), slice(px0, px0 + pw))
+            n, labels = cv2.connectedComponents(printed[box], connectivity=8)
             inside = np.zeros(n, bool)
-            inside[labels[occ & (printed > 0)]] = True
+            inside[labels[occ[box] & (printed[box] > 0)]] = True
             inside[0] = False
-            markers[inside[labels]] = 2
-    _mark(markers, px[:, 0][hidden], py[:, 0][hidden], s, (x0, y0), 2)
+            if inside.any():
+                markers[box][inside[labels]] = 2
+    _mark(markers, pi[:, 0][hidden], pj[:, 0][hidden], (x0, y0), 2)
     # ... and beyond the hidden stretch, off the painted ink: the obstacle that hides a stretch
     # of a symbol's edge stands on the floor beside it
-    out = OBSTACLE_SEED_PX / (2 * EDGE_DEPTH_PX)
-    ox = px[:, 1] + out * (px[:, 1] - px[:, 0])
-    oy = py[:, 1] + out * (py[:, 1] - py[:, 0])
-    _mark(markers, ox[hidden], oy[hidden], s, (x0, y0), 2)
+    _mark(markers, pi[:, 2][hidden], pj[:, 2][hidden], (x0, y0), 2)
     seeds = markers.copy()
     if debug is not None:
         debug.update(window=(x0, y0, x1, y1), image=image, seeds=seeds, roi=roi)
@@ -540,13 +575,13 @@ def _disc(side: int) -> np.ndarray:
     return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (side, side))
 
 
-def _mark(markers: np.ndarray, x: np.ndarray, y: np.ndarray, scale: int, origin: tuple[int, int], label: int) -> None:
-    """Label the small-image pixels holding the calibration points ``x``, ``y`` (any shape)."""
-    if not np.size(x):
+def _mark(markers: np.ndarray, i: np.ndarray, j: np.ndarray, origin: tuple[int, int], label: int) -> None:
+    """Label the small image's pixels ``(i, j)`` (1-D, whole image) of the window at ``origin``
+    (x0, y0) that ``markers`` covers."""
+    if not len(i):
         return
     h, w = markers.shape
-    j = np.floor(np.ravel(x) / scale).astype(np.int64) - origin[0]
-    i = np.floor(np.ravel(y) / scale).astype(np.int64) - origin[1]
+    i, j = i - origin[1], j - origin[0]
     ok = (j >= 0) & (j < w) & (i >= 0) & (i < h)
     markers[i[ok], j[ok]] = label
 
