@@ -308,3 +308,58 @@ def test_the_moved_frame_is_read_as_its_full_resolution_warp():
         got = _in_calibration(gray, camera, 4, box)
         assert got.shape == blocks.shape
         assert np.abs(got - blocks).max() < tol, (angle, np.abs(got - blocks).max())
+
+
+def _supported_by_box_filters(region, occ, floor, frame, log_reference, texture, share):
+    """The support test as first written: the light box-filtered over the whole box around the
+    pieces (the pieces' pixels only are now summed, from integral images)."""
+    from sbplan.detection.footprints import CHANGE_LEVEL, TEXTURE_SEED
+
+    outside = region & ~occ
+    bx, by, bw, bh = cv2.boundingRect(outside.view(np.uint8))
+    h, w = region.shape
+    y0, y1, x0, x1 = max(by - 15, 0), min(by + bh + 15, h), max(bx - 15, 0), min(bx + bw + 15, w)
+    box = (slice(y0, y1), slice(x0, x1))
+    ratio = cv2.log(np.maximum(frame[box], np.float32(1))) - log_reference[box]
+    weight = floor[box].astype(np.float32)
+    light = cv2.blur(ratio * weight, (31, 31), borderType=cv2.BORDER_CONSTANT) \
+        / np.maximum(cv2.blur(weight, (31, 31), borderType=cv2.BORDER_CONSTANT), np.float32(1e-3))
+    changed = (np.abs(ratio - light) > CHANGE_LEVEL) | (texture[box] > TEXTURE_SEED)
+    n, labels = cv2.connectedComponents(outside[box].astype(np.uint8), connectivity=8)
+    drop = np.bincount(labels[changed], minlength=n) < share * np.bincount(labels.ravel(), minlength=n)
+    drop[0] = False
+    out = region.copy()
+    out[box] &= ~drop[labels]
+    return out
+
+
+def test_the_support_test_keeps_the_pieces_that_changed():
+    """Pieces outside the occupied cells stay when a quarter of them changed from the reference
+    (against the light the floor seeds around show), whatever the light's level: the same pieces
+    as box filters over the whole box give, on pieces near the decision (the pieces' pixels only
+    are summed now, from integral images)."""
+    from sbplan.detection.footprints import SUPPORT, _supported
+
+    rng = np.random.default_rng(5)
+    h, w = 120, 160
+    log_reference = cv2.GaussianBlur(rng.normal(5.0, 0.05, (h, w)).astype(np.float32), (0, 0), 3)
+    light = np.linspace(-0.3, 0.2, w, dtype=np.float32)[None, :]  # a lighting gradient
+    # near CHANGE_LEVEL off the light here and there: a piece's fate hangs on its light
+    ratio = (light + rng.normal(0, 0.08, (h, w))).astype(np.float32)
+    occ = np.zeros((h, w), bool)
+    occ[45:75, 60:100] = True
+    region = occ.copy()
+    for k in range(28):  # arms out of the occupied cells, some darker than their light
+        r0 = 46 + k
+        side = slice(100, 110 + 2 * k) if k % 2 else slice(50 - 2 * k, 60)
+        region[r0, side] = True
+        ratio[r0, side] -= 0.01 * (k % 5)
+    frame = np.exp(log_reference + ratio).astype(np.float32)
+    away = cv2.distanceTransform((~region).astype(np.uint8), cv2.DIST_L2, 5)
+    floor = (away >= 3) & (rng.random((h, w)) < 0.3)
+    texture = np.zeros((h, w), np.float32)
+    got = _supported(region, occ, floor, frame, log_reference, texture, SUPPORT)
+    want = _supported_by_box_filters(region, occ, floor, frame, log_reference, texture, SUPPORT)
+    assert np.array_equal(got, want)
+    kept = [got[46 + k, 104 if k % 2 else 56] for k in range(28)]
+    assert any(kept) and not all(kept), kept
