@@ -283,3 +283,83 @@ def test_a_moved_camera_keeps_its_footprints():
         recall[motion] = total.recall
     still = recall.pop(None)
     assert all(r >= still - 0.002 for r in recall.values()), (still, recall)
+
+
+def test_the_moved_frame_is_read_as_its_full_resolution_warp():
+    """The moved frame's blocks (box means sampled where the blocks moved) are the block means of
+    the frame warped at its full resolution: exactly under a translation, within a grey level
+    under the camera's small turns and zooms."""
+    from sbplan.detection.footprints import _in_calibration
+    from sbplan.detection.registration import CameraMotion
+
+    rng = np.random.default_rng(3)
+    gray = cv2.GaussianBlur((rng.random((240, 320)) * 255).astype(np.uint8), (0, 0), 1.5)
+    gray = cv2.normalize(gray, None, 0, 255, cv2.NORM_MINMAX)
+    box = (3, 4, 70, 52)  # small pixels: x0, y0, x1, y1
+    for angle, scale, tol in ((0.0, 1.0, 1e-3), (0.5, 1.01, 1.0)):
+        m = cv2.getRotationMatrix2D((160.0, 120.0), angle, scale)
+        m[:, 2] += (0.7, -0.4)
+        camera = CameraMotion(np.vstack([m, (0, 0, 1)]), (0.7, -0.4), angle, scale, 0.0, 0, 1.0, "similarity")
+        x0, y0, x1, y1 = box
+        shift = np.array([[1.0, 0, 4 * x0], [0, 1.0, 4 * y0], [0, 0, 1.0]])
+        full = cv2.warpAffine(gray.astype(np.float32), (camera.matrix @ shift)[:2], (4 * (x1 - x0), 4 * (y1 - y0)),
+                              flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP, borderMode=cv2.BORDER_REPLICATE)
+        blocks = full.reshape(y1 - y0, 4, x1 - x0, 4).mean(axis=(1, 3))
+        got = _in_calibration(gray, camera, 4, box)
+        assert got.shape == blocks.shape
+        assert np.abs(got - blocks).max() < tol, (angle, np.abs(got - blocks).max())
+
+
+def _supported_by_box_filters(region, occ, floor, frame, log_reference, texture, share):
+    """The support test as first written: the light box-filtered over the whole box around the
+    pieces (the pieces' pixels only are now summed, from integral images)."""
+    from sbplan.detection.footprints import CHANGE_LEVEL, TEXTURE_SEED
+
+    outside = region & ~occ
+    bx, by, bw, bh = cv2.boundingRect(outside.view(np.uint8))
+    h, w = region.shape
+    y0, y1, x0, x1 = max(by - 15, 0), min(by + bh + 15, h), max(bx - 15, 0), min(bx + bw + 15, w)
+    box = (slice(y0, y1), slice(x0, x1))
+    ratio = cv2.log(np.maximum(frame[box], np.float32(1))) - log_reference[box]
+    weight = floor[box].astype(np.float32)
+    light = cv2.blur(ratio * weight, (31, 31), borderType=cv2.BORDER_CONSTANT) \
+        / np.maximum(cv2.blur(weight, (31, 31), borderType=cv2.BORDER_CONSTANT), np.float32(1e-3))
+    changed = (np.abs(ratio - light) > CHANGE_LEVEL) | (texture[box] > TEXTURE_SEED)
+    n, labels = cv2.connectedComponents(outside[box].astype(np.uint8), connectivity=8)
+    drop = np.bincount(labels[changed], minlength=n) < share * np.bincount(labels.ravel(), minlength=n)
+    drop[0] = False
+    out = region.copy()
+    out[box] &= ~drop[labels]
+    return out
+
+
+def test_the_support_test_keeps_the_pieces_that_changed():
+    """Pieces outside the occupied cells stay when a quarter of them changed from the reference
+    (against the light the floor seeds around show), whatever the light's level: the same pieces
+    as box filters over the whole box give, on pieces near the decision (the pieces' pixels only
+    are summed now, from integral images)."""
+    from sbplan.detection.footprints import SUPPORT, _supported
+
+    rng = np.random.default_rng(5)
+    h, w = 120, 160
+    log_reference = cv2.GaussianBlur(rng.normal(5.0, 0.05, (h, w)).astype(np.float32), (0, 0), 3)
+    light = np.linspace(-0.3, 0.2, w, dtype=np.float32)[None, :]  # a lighting gradient
+    # near CHANGE_LEVEL off the light here and there: a piece's fate hangs on its light
+    ratio = (light + rng.normal(0, 0.08, (h, w))).astype(np.float32)
+    occ = np.zeros((h, w), bool)
+    occ[45:75, 60:100] = True
+    region = occ.copy()
+    for k in range(28):  # arms out of the occupied cells, some darker than their light
+        r0 = 46 + k
+        side = slice(100, 110 + 2 * k) if k % 2 else slice(50 - 2 * k, 60)
+        region[r0, side] = True
+        ratio[r0, side] -= 0.01 * (k % 5)
+    frame = np.exp(log_reference + ratio).astype(np.float32)
+    away = cv2.distanceTransform((~region).astype(np.uint8), cv2.DIST_L2, 5)
+    floor = (away >= 3) & (rng.random((h, w)) < 0.3)
+    texture = np.zeros((h, w), np.float32)
+    got = _supported(region, occ, floor, frame, log_reference, texture, SUPPORT)
+    want = _supported_by_box_filters(region, occ, floor, frame, log_reference, texture, SUPPORT)
+    assert np.array_equal(got, want)
+    kept = [got[46 + k, 104 if k % 2 else 56] for k in range(28)]
+    assert any(kept) and not all(kept), kept

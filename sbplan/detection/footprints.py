@@ -68,7 +68,7 @@ import numpy as np
 
 from ..errors import InputError
 from .outline_checks import EDGE_DEPTH_PX, EDGE_SAMPLES, edge_factors, edge_kept, edge_probes
-from .registration import THUMBNAIL_FACTOR, CameraMotion
+from .registration import THUMBNAIL_FACTOR, CameraMotion, apply
 
 #: A run of this many points on each side of an outline point must agree with it (all hidden, or
 #: all visible) for the point to seed a region: single points flip with noise and wear.
@@ -125,6 +125,16 @@ class FootprintReference:
         Each cell's corners at the small scale.
     grid_area : ndarray (h, w), bool
         The cells' union: footprints stop at the floor's edge.
+    quads_fixed : ndarray (rows, cols, 4, 2), int32
+        ``cell_quads`` in OpenCV's fixed point (4 fractional bits), ready to fill.
+    floor_seed_ij : ndarray (2, K), int64
+        Small pixels ``(i, j)`` of every symbol's ink core and of its outline's outer probes: floor
+        when its cell is free.
+    floor_seed_cell : ndarray (K,), int64
+        The (flat) cell of each of them.
+    probe_ij : ndarray (2, cells, 3, S), int64
+        Small pixels ``(i, j)`` of each outline point's inner probe, outer probe and obstacle seed
+        beyond it (:data:`OBSTACLE_SEED_PX`).
     """
 
     scale: int
@@ -141,6 +151,10 @@ class FootprintReference:
     factors: np.ndarray
     cell_quads: np.ndarray
     grid_area: np.ndarray
+    quads_fixed: np.ndarray
+    floor_seed_ij: np.ndarray
+    floor_seed_cell: np.ndarray
+    probe_ij: np.ndarray
 
 
 def _small(xy: np.ndarray, scale: int) -> np.ndarray:
@@ -196,9 +210,28 @@ def footprint_reference(calibration) -> FootprintReference | None:
     ring = np.concatenate([corners[0, :], corners[1:, -1], corners[-1, -2::-1], corners[-2:0:-1, 0]])
     near_ink = cv2.dilate(ink, np.ones((7, 7), np.uint8)) > 0
     reference = thumb.astype(np.float32)
+    # what each frame marks, in small pixels, found once: the free symbols' floor seeds ...
+    outer_i, outer_j = _small_pixel(x[:, 1], y[:, 1], scale)
+    seed_i = np.concatenate([np.concatenate([c // shape[1] for c in cores]), outer_i.ravel()])
+    seed_j = np.concatenate([np.concatenate([c % shape[1] for c in cores]), outer_j.ravel()])
+    seed_cell = np.concatenate([np.repeat(np.arange(n), [len(c) for c in cores]),
+                                np.repeat(np.arange(n), x.shape[-1])])
+    # ... and the outline points' probes and the obstacle seeds beyond them
+    out = OBSTACLE_SEED_PX / (2 * EDGE_DEPTH_PX)
+    ox = x[:, 1] + out * (x[:, 1] - x[:, 0])
+    oy = y[:, 1] + out * (y[:, 1] - y[:, 0])
+    probe = np.stack([np.stack(_small_pixel(px, py, scale), axis=1)
+                      for px, py in ((x[:, 0], y[:, 0]), (x[:, 1], y[:, 1]), (ox, oy))], axis=2)
     return FootprintReference(scale, reference, grown, near_ink, weight, weight_sum, paint, cores,
                               cv2.log(np.maximum(reference, np.float32(1))), x, y,
-                              edge_factors(cal.edge_contrast), quads, _fill(shape, [ring]) > 0)
+                              edge_factors(cal.edge_contrast), quads, _fill(shape, [ring]) > 0,
+                              np.rint(quads * 16).astype(np.int32), np.stack([seed_i, seed_j]), seed_cell,
+                              np.moveaxis(probe, 1, 0))
+
+
+def _small_pixel(x: np.ndarray, y: np.ndarray, scale: int) -> tuple[np.ndarray, np.ndarray]:
+    """The small image's pixels ``(i, j)`` holding the calibration points ``x``, ``y``."""
+    return np.floor(y / scale).astype(np.int64), np.floor(x / scale).astype(np.int64)
 
 
 def _downsample(gray: np.ndarray, scale: int, shape: tuple[int, int]) -> np.ndarray:
@@ -216,22 +249,40 @@ def _downsample(gray: np.ndarray, scale: int, shape: tuple[int, int]) -> np.ndar
 
 def _in_calibration(gray: np.ndarray, camera: CameraMotion, scale: int, box: tuple[int, int, int, int]) -> np.ndarray:
     """The window ``box`` (x0, y0, x1, y1, small calibration pixels) of the calibration's view,
-    read from the moved frame ``gray`` (H, W) at its full resolution, then averaged over
-    ``scale x scale`` blocks as the reference thumbnail was. Warping the frame's blocks instead
-    blurs every edge by the interpolation between them: under a 0.7 px shift the obstacles'
-    recall fell from 0.997 to 0.991 (0.976 under the suite's drift)."""
+    read from the moved frame ``gray`` (H, W), averaged over ``scale x scale`` blocks as the
+    reference thumbnail was, float32.
+
+    The frame's ``scale x scale`` box means are taken at every pixel and sampled (bilinearly)
+    where each block's corner moved to. For a translation this is exactly the block means of the
+    frame warped at its full resolution (box and bilinear interpolation commute), at a third of
+    the cost (the full-resolution warp was a third of the whole footprint); for the camera's small
+    rotations and zooms the blocks turn by well under a tenth of a pixel. Warping the frame's block
+    means instead blurs every edge by the interpolation between blocks: under a 0.7 px shift the
+    obstacles' recall fell from 0.997 to 0.991 (0.976 under the suite's drift).
+    """
     x0, y0, x1, y1 = box
-    # calibration pixel of the window -> frame pixel
-    shift = np.array([[1.0, 0, x0 * scale], [0, 1.0, y0 * scale], [0, 0, 1.0]])
-    m = camera.matrix @ shift
-    size = ((x1 - x0) * scale, (y1 - y0) * scale)
-    if np.allclose(m[2], (0, 0, 1)):
-        full = cv2.warpAffine(gray, m[:2], size, flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+    h, w = gray.shape
+    # small window pixel (j, i) -> its block's centre in calibration pixels -> frame pixels
+    to_cal = np.array([[scale, 0, x0 * scale + (scale - 1) / 2], [0, scale, y0 * scale + (scale - 1) / 2], [0, 0, 1.0]])
+    m = camera.matrix @ to_cal
+    corners = np.array([[0, 0], [x1 - x0 - 1, 0], [0, y1 - y0 - 1], [x1 - x0 - 1, y1 - y0 - 1]], np.float64)
+    q = apply(m, corners)
+    # the frame's part the blocks read (a box mean reaches scale - 1 pixels right and down)
+    half = (scale - 1) / 2
+    fx0 = int(np.clip(np.floor(q[:, 0].min() - half) - 1, 0, w - 1))
+    fy0 = int(np.clip(np.floor(q[:, 1].min() - half) - 1, 0, h - 1))
+    fx1 = int(np.clip(np.ceil(q[:, 0].max() + half) + 2, fx0 + 1, w))
+    fy1 = int(np.clip(np.ceil(q[:, 1].max() + half) + 2, fy0 + 1, h))
+    sums = cv2.boxFilter(gray[fy0:fy1, fx0:fx1], cv2.CV_32F, (scale, scale), anchor=(0, 0),
+                         borderType=cv2.BORDER_REPLICATE)
+    # block centre -> the top-left corner of the box around it, in the crop's pixels
+    corner = np.array([[1.0, 0, -half - fx0], [0, 1.0, -half - fy0], [0, 0, 1.0]]) @ m
+    size = (x1 - x0, y1 - y0)
+    if np.allclose(corner[2], (0, 0, 1)):
+        return cv2.warpAffine(sums, corner[:2], size, flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
                               borderMode=cv2.BORDER_REPLICATE)
-    else:
-        full = cv2.warpPerspective(gray, m, size, flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
-                                   borderMode=cv2.BORDER_REPLICATE)
-    return _downsample(full, scale, (y1 - y0, x1 - x0))
+    return cv2.warpPerspective(sums, corner, size, flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+                               borderMode=cv2.BORDER_REPLICATE)
 
 
 def _runs(flags: np.ndarray, run: int) -> np.ndarray:
@@ -348,13 +399,17 @@ def pixel_outlines(gray: np.ndarray, occupied: np.ndarray, reference: FootprintR
     near = cv2.dilate(occupied.astype(np.uint8), np.ones((2 * k + 1, 2 * k + 1), np.uint8)) > 0
     # the window: the ROI's bounding box and a pixel more (cv2.boundingRect reads the mask at
     # C speed; np.nonzero of the whole image cost more than the ROI's fill)
-    roi = _fill((h, w), list(ref.cell_quads[near]))
-    bx, by, bw, bh = cv2.boundingRect(roi)
+    near_cells = np.zeros((h, w), np.uint8)
+    cv2.fillPoly(near_cells, list(ref.quads_fixed[near]), 1, cv2.LINE_8, shift=4)
+    bx, by, bw, bh = cv2.boundingRect(near_cells)
     x0, y0 = max(bx - 1, 0), max(by - 1, 0)
     x1, y1 = min(bx + bw + 1, w), min(by + bh + 1, h)
     win = (slice(y0, y1), slice(x0, x1))
-    roi = roi[win] > 0
-    occ = _fill((h, w), list(ref.cell_quads[occupied]))[win] > 0
+    roi = near_cells[win] > 0
+    occ_cells = np.zeros((y1 - y0, x1 - x0), np.uint8)
+    # (the offset is in the points' fixed point, like them)
+    cv2.fillPoly(occ_cells, list(ref.quads_fixed[occupied]), 1, cv2.LINE_8, shift=4, offset=(-16 * x0, -16 * y0))
+    occ = occ_cells > 0
     # a movement under a quarter pixel is under 1/16 of a small pixel: not worth a warp
     camera = CameraMotion.none() if camera is None else camera
     moved = camera.moved
@@ -377,12 +432,8 @@ def pixel_outlines(gray: np.ndarray, occupied: np.ndarray, reference: FootprintR
     markers[~roi] = 1
     # free symbols' ink and the floor just around their outlines
     free = ~occupied.ravel()
-    free_idx = np.flatnonzero(free)
-    cores = np.concatenate([ref.ink_cores[i] for i in free_idx]) if len(free_idx) else np.zeros(0, np.int64)
-    ci, cj = np.divmod(cores, w)
-    keep = (ci >= y0) & (ci < y1) & (cj >= x0) & (cj < x1)
-    markers[ci[keep] - y0, cj[keep] - x0] = 1
-    _mark(markers, ref.probe_x[free_idx, 1], ref.probe_y[free_idx, 1], s, (x0, y0), 1)
+    fi, fj = ref.floor_seed_ij[:, free[ref.floor_seed_cell]]
+    _mark(markers, fi, fj, (x0, y0), 1)
     # occupied cells' outlines: runs of hidden points (obstacle), runs of visible ones (floor)
     occ_idx = np.flatnonzero(occupied.ravel())
     px, py = ref.probe_x[occ_idx], ref.probe_y[occ_idx]
@@ -393,8 +444,9 @@ def pixel_outlines(gray: np.ndarray, occupied: np.ndarray, reference: FootprintR
         fx, fy = px, py
     kept = edge_kept(gray, fx, fy, ref.factors[occ_idx])
     visible, hidden = _runs(kept, SEED_RUN), _runs(~kept, SEED_RUN)
-    _mark(markers, px[:, 0][visible], py[:, 0][visible], s, (x0, y0), 1)
-    _mark(markers, px[:, 1][visible], py[:, 1][visible], s, (x0, y0), 1)
+    pi, pj = ref.probe_ij[:, occ_idx]
+    _mark(markers, pi[:, 0][visible], pj[:, 0][visible], (x0, y0), 1)
+    _mark(markers, pi[:, 1][visible], pj[:, 1][visible], (x0, y0), 1)
     # an obstacle's print: texture the floor does not have, inside occupied cells
     if texture_seed > 0:
         raw = cv2.log(np.maximum(frame, np.float32(1)))
@@ -407,19 +459,20 @@ def pixel_outlines(gray: np.ndarray, occupied: np.ndarray, reference: FootprintR
         printed = _opened(printed, PRINT_OPEN, PRINT_OPEN - 6)
         # a printed area that reaches into an occupied cell, all of it: the print runs on where
         # the obstacle reaches beyond its cells
-        n, labels = cv2.connectedComponents(printed, connectivity=8)
-        if n > 1:
+        # (in the printed areas' box: a lookup over the whole window cost more than the rest)
+        px0, py0, pw, ph = cv2.boundingRect(printed)
+        if pw:
+            box = (slice(py0, py0 + ph), slice(px0, px0 + pw))
+            n, labels = cv2.connectedComponents(printed[box], connectivity=8)
             inside = np.zeros(n, bool)
-            inside[labels[occ & (printed > 0)]] = True
+            inside[labels[occ[box] & (printed[box] > 0)]] = True
             inside[0] = False
-            markers[inside[labels]] = 2
-    _mark(markers, px[:, 0][hidden], py[:, 0][hidden], s, (x0, y0), 2)
+            if inside.any():
+                markers[box][inside[labels]] = 2
+    _mark(markers, pi[:, 0][hidden], pj[:, 0][hidden], (x0, y0), 2)
     # ... and beyond the hidden stretch, off the painted ink: the obstacle that hides a stretch
     # of a symbol's edge stands on the floor beside it
-    out = OBSTACLE_SEED_PX / (2 * EDGE_DEPTH_PX)
-    ox = px[:, 1] + out * (px[:, 1] - px[:, 0])
-    oy = py[:, 1] + out * (py[:, 1] - py[:, 0])
-    _mark(markers, ox[hidden], oy[hidden], s, (x0, y0), 2)
+    _mark(markers, pi[:, 2][hidden], pj[:, 2][hidden], (x0, y0), 2)
     seeds = markers.copy()
     if debug is not None:
         debug.update(window=(x0, y0, x1, y1), image=image, seeds=seeds, roi=roi)
@@ -460,30 +513,46 @@ def _supported(region: np.ndarray, occ: np.ndarray, floor: np.ndarray, frame: np
     bx, by, bw, bh = cv2.boundingRect(outside.view(np.uint8))
     if bw == 0:
         return region
-    # the work is done around the pieces only (the light is measured 15 pixels around them)
-    h, w = region.shape
-    y0, y1 = max(by - 15, 0), min(by + bh + 15, h)
-    x0, x1 = max(bx - 15, 0), min(bx + bw + 15, w)
-    box = (slice(y0, y1), slice(x0, x1))
-    ratio = cv2.log(np.maximum(frame[box], np.float32(1))) - log_reference[box]
-    seeds = floor[box]
-    weight = seeds.astype(np.float32)
-    side = 31
-    light = cv2.blur(ratio * weight, (side, side)) / np.maximum(cv2.blur(weight, (side, side)), np.float32(1e-3))
-    if not seeds.any():
-        light[:] = np.float32(np.median(ratio[::3, ::3]))
-    changed = np.abs(ratio - light) > CHANGE_LEVEL
-    if texture is not None:
-        changed |= texture[box] > TEXTURE_SEED
-    n, labels = cv2.connectedComponents(outside[box].astype(np.uint8), connectivity=8)
+    pieces = outside[by:by + bh, bx:bx + bw].view(np.uint8)
+    n, labels = cv2.connectedComponents(pieces, connectivity=8)
     if n <= 1:
         return region
-    counts = np.bincount(labels.ravel(), minlength=n)
-    hits = np.bincount(labels[changed], minlength=n)
+    # the pieces' pixels only: the light around them is summed from integral images (box filters
+    # of the whole box cost three times as much, for the few pixels the pieces hold)
+    jj, ii = cv2.findNonZero(pieces).reshape(-1, 2).T
+    piece = labels[ii, jj]
+    h, w = region.shape
+    r = 15  # the light is measured over 31 x 31 pixels
+    y0, y1 = max(by - r, 0), min(by + bh + r, h)
+    x0, x1 = max(bx - r, 0), min(bx + bw + r, w)
+    box = (slice(y0, y1), slice(x0, x1))
+    ratio = cv2.log(np.maximum(frame[box], np.float32(1))) - log_reference[box]
+    ii, jj = ii + (by - y0), jj + (bx - x0)
+    seeds = floor[box]
+    if seeds.any():
+        top, bottom = np.maximum(ii - r, 0), np.minimum(ii + r + 1, y1 - y0)
+        left, right = np.maximum(jj - r, 0), np.minimum(jj + r + 1, x1 - x0)
+
+        def summed(image: np.ndarray) -> np.ndarray:
+            s = cv2.integral(image, sdepth=cv2.CV_64F)
+            return s[bottom, right] - s[top, right] - s[bottom, left] + s[top, left]
+
+        light = summed(ratio * seeds) / np.maximum(summed(seeds.view(np.uint8)), (2 * r + 1) ** 2 * 1e-3)
+    else:
+        light = np.float64(np.median(ratio[::3, ::3]))
+    changed = np.abs(ratio[ii, jj] - light) > CHANGE_LEVEL
+    if texture is not None:
+        changed |= texture[box][ii, jj] > TEXTURE_SEED
+    counts = np.bincount(piece, minlength=n)
+    hits = np.bincount(piece[changed], minlength=n)
     drop = hits < share * counts
     drop[0] = False
+    if not drop.any():
+        return region
     out = region.copy()
-    out[box] &= ~drop[labels]
+    part = out[by:by + bh, bx:bx + bw]
+    for label in np.flatnonzero(drop):  # few pieces: a comparison each costs less than a lookup
+        part &= labels != label
     return out
 
 
@@ -506,13 +575,13 @@ def _disc(side: int) -> np.ndarray:
     return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (side, side))
 
 
-def _mark(markers: np.ndarray, x: np.ndarray, y: np.ndarray, scale: int, origin: tuple[int, int], label: int) -> None:
-    """Label the small-image pixels holding the calibration points ``x``, ``y`` (any shape)."""
-    if not np.size(x):
+def _mark(markers: np.ndarray, i: np.ndarray, j: np.ndarray, origin: tuple[int, int], label: int) -> None:
+    """Label the small image's pixels ``(i, j)`` (1-D, whole image) of the window at ``origin``
+    (x0, y0) that ``markers`` covers."""
+    if not len(i):
         return
     h, w = markers.shape
-    j = np.floor(np.ravel(x) / scale).astype(np.int64) - origin[0]
-    i = np.floor(np.ravel(y) / scale).astype(np.int64) - origin[1]
+    i, j = i - origin[1], j - origin[0]
     ok = (j >= 0) & (j < w) & (i >= 0) & (i < h)
     markers[i[ok], j[ok]] = label
 
