@@ -499,9 +499,8 @@ def refine(centres_px: np.ndarray, cells: np.ndarray, cell_centres_px: np.ndarra
         matrix, keep, rms = _trimmed_fit(src, dst)
         model = "similarity"
     if model == "similarity" and keep.sum() >= HOMOGRAPHY_MIN_SYMBOLS and rms > HOMOGRAPHY_MIN_RESIDUAL_PX:
-        h, _ = cv2.findHomography(src[keep], dst[keep], 0)
-        if h is not None and np.isfinite(h).all() and abs(h[2, 2]) > 1e-12:
-            h = h / h[2, 2]
+        h = _homography_lsq(src[keep], dst[keep])
+        if h is not None:
             rms_h = float(np.sqrt(np.mean(np.sum((apply(h, src[keep]) - dst[keep]) ** 2, axis=1))))
             if rms_h < HOMOGRAPHY_GAIN * rms:
                 matrix, rms, model = h, rms_h, "homography"
