@@ -104,22 +104,18 @@ class Effects:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not (lo <= v <= hi):
                 raise SceneError(f"effects.{name}: must be a number in [{lo}, {hi}], got {v!r}")
-        if self.tilt is not None:
+        # camera angles: the tilt the reference shares, the sag that came after it
+        for name, limit in (("tilt", 15), ("sag", 5)):
+            v = getattr(self, name)
+            if v is None:
+                continue
             try:
-                a, b = (float(x) for x in self.tilt)
+                a, b = (float(x) for x in v)
             except (TypeError, ValueError):
-                raise SceneError(f"effects.tilt: expected (about_x, about_y) degrees, got {self.tilt!r}") from None
-            if max(abs(a), abs(b)) > 15:
-                raise SceneError(f"effects.tilt: at most 15 degrees, got {self.tilt!r}")
-            object.__setattr__(self, "tilt", (a, b))
-        if self.sag is not None:
-            try:
-                a, b = (float(x) for x in self.sag)
-            except (TypeError, ValueError):
-                raise SceneError(f"effects.sag: expected (about_x, about_y) degrees, got {self.sag!r}") from None
-            if max(abs(a), abs(b)) > 5:
-                raise SceneError(f"effects.sag: at most 5 degrees, got {self.sag!r}")
-            object.__setattr__(self, "sag", (a, b))
+                raise SceneError(f"effects.{name}: expected (about_x, about_y) degrees, got {v!r}") from None
+            if max(abs(a), abs(b)) > limit:
+                raise SceneError(f"effects.{name}: at most {limit} degrees, got {v!r}")
+            object.__setattr__(self, name, (a, b))
         if self.distortion is not None and not (-0.3 <= float(self.distortion) <= 0.3):
             raise SceneError(f"effects.distortion: must lie in [-0.3, 0.3], got {self.distortion!r}")
         if self.motion is not None:
