@@ -497,23 +497,21 @@ class Detector:
             # outline no longer matches, and the frame has nothing to say where it left. Such a
             # cell is judged by the part of its edge in view, when that is most of it.
             cut = _out_of_view(ex, ey, gray.shape) if motion.moved else None
+            # (the scratch repair reads a whole symbol's window, and a partly seen symbol is no
+            # proof that the matcher does not fit: those cells are neither broken nor plain)
+            whole = True
             if cut is not None:
-                kept, probed = kept | cut, probed & ~cut
+                kept, probed, whole = kept | cut, probed & ~cut, ~cut.any(axis=1)
             intact = intact_edges(kept, max_break=self._scratch_points[missing], gap=self._break_gap[missing],
                                   probed=probed)
             last.intact[missing] = intact
             # ... or shows it once the thin scratches across it are painted over (wear), asked of
             # a few cells only: an obstacle over a symbol breaks much of its edge, scratches a few
             # points, and a floor that is mostly occupied is not worn symbols
-            last.broken[missing] = ~intact & ((~kept).mean(axis=1) <= SCRATCH_BROKEN_SHARE)
+            last.broken[missing] = ~intact & ((~kept).mean(axis=1) <= SCRATCH_BROKEN_SHARE) & whole
             # (the symbols whose edge shows at every point: what a matcher that does not fit the
             # floor leaves unmatched; scratched symbols break their edge here and there)
-            last.plain[missing] = kept.all(axis=1)
-            if cut is not None:
-                # (the scratch repair reads a whole symbol's window; a partly seen one is not for it)
-                partial = cut.any(axis=1)
-                last.broken[missing] &= ~partial
-                last.plain[missing] &= ~partial
+            last.plain[missing] = kept.all(axis=1) & whole
         broken = np.flatnonzero(last.broken)
         rescued = last.intact
         if 0 < len(broken) <= SCRATCH_CELLS:
