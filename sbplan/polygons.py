@@ -30,7 +30,7 @@ __all__ = [
     "signed_area", "signed_areas", "perimeter", "perimeters", "centroid", "centroids",
     "resample_closed", "resample_many", "resample_xy", "resample_complex", "chain_length", "contour_length",
     "length_filter",
-    "pack",
+    "pack", "apply_homography",
 ]
 
 _SQRT2 = float(np.sqrt(2.0))
@@ -490,3 +490,16 @@ def _check_samples(n) -> int:
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 3:
         raise InputError(f"n (number of samples) must be an integer >= 3, got {n!r}")
     return int(n)
+
+
+def apply_homography(matrix: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    """``xy`` (..., 2) mapped by the 3x3 ``matrix`` (projective division when its last row is not
+    ``(0, 0, 1)``): camera movements, the renderer's views, the grid's homography."""
+    xy = np.asarray(xy, dtype=np.float64)
+    out = xy @ matrix[:2, :2].T + matrix[:2, 2]
+    # (plain floats: a numpy scalar's truth value costs more than this whole function's arithmetic)
+    h0, h1 = float(matrix[2, 0]), float(matrix[2, 1])
+    if h0 or h1:
+        w = xy @ matrix[2, :2] + matrix[2, 2]
+        out /= w[..., None]
+    return out

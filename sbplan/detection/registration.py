@@ -44,6 +44,7 @@ import cv2
 import numpy as np
 
 from ..errors import CameraMotionError
+from ..polygons import apply_homography as apply
 from ._small import median
 
 if TYPE_CHECKING:
@@ -185,19 +186,6 @@ class CameraMotion:
         return (f"camera: shift ({self.shift_px[0]:+.2f}, {self.shift_px[1]:+.2f}) px, rotation "
                 f"{self.rotation_deg:+.3f} deg, scale {self.scale:.4f} since calibration "
                 f"(residual {self.residual_px:.2f} px, {self.symbols_used} symbols, {self.model})")
-
-
-def apply(matrix: np.ndarray, xy: np.ndarray) -> np.ndarray:
-    """``xy`` (..., 2) mapped by the 3x3 ``matrix`` (projective division when its last row is not
-    ``(0, 0, 1)``)."""
-    xy = np.asarray(xy, dtype=np.float64)
-    out = xy @ matrix[:2, :2].T + matrix[:2, 2]
-    # (plain floats: a numpy scalar's truth value costs more than this whole function's arithmetic)
-    h0, h1 = float(matrix[2, 0]), float(matrix[2, 1])
-    if h0 or h1:
-        w = xy @ matrix[2, :2] + matrix[2, 2]
-        out /= w[..., None]
-    return out
 
 
 def _distances(a: np.ndarray, b: np.ndarray) -> np.ndarray:

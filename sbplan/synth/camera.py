@@ -15,6 +15,8 @@ import math
 import cv2
 import numpy as np
 
+from ..polygons import apply_homography
+
 
 @functools.lru_cache(maxsize=16)
 def _homography(width: int, height: int, tilt: tuple[float, float]) -> np.ndarray:
@@ -142,13 +144,6 @@ def view_change(width: int, height: int, motion=None, sag=None) -> np.ndarray | 
     return m / m[2, 2]
 
 
-def _apply(matrix: np.ndarray, xy: np.ndarray) -> np.ndarray:
-    """``xy`` (..., 2) mapped by the 3x3 ``matrix``, with the projective division."""
-    q = xy @ matrix[:2, :2].T + matrix[:2, 2]
-    w = xy @ matrix[2, :2] + matrix[2, 2]
-    return q / w[..., None]
-
-
 def moved_view(floor_image: np.ndarray, camera: Camera, matrix: np.ndarray) -> np.ndarray:
     """What ``camera`` moved by ``matrix`` (:func:`motion_matrix`) sees of ``floor_image`` (the
     floor plane, the image's size), in one interpolation: each moved pixel reads the floor point
@@ -164,7 +159,7 @@ def moved_view(floor_image: np.ndarray, camera: Camera, matrix: np.ndarray) -> n
         return cv2.warpAffine(floor_image, matrix[:2].astype(np.float64), (w, h), flags=cv2.INTER_LINEAR,
                               borderMode=cv2.BORDER_REFLECT)
     ys, xs = np.mgrid[0:h, 0:w].astype(np.float64)
-    p = _apply(inv, np.stack([xs, ys], axis=-1))
+    p = apply_homography(inv, np.stack([xs, ys], axis=-1))
     f = camera.image_to_floor(p)
     return cv2.remap(floor_image, f[..., 0].astype(np.float32), f[..., 1].astype(np.float32), cv2.INTER_LINEAR,
                      borderMode=cv2.BORDER_REFLECT)

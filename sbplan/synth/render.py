@@ -20,7 +20,8 @@ from shapely.geometry import Polygon
 
 from ..errors import SceneError
 from .aruco import aruco_pattern
-from .camera import Camera, _apply, moved_view, view_change
+from ..polygons import apply_homography
+from .camera import Camera, moved_view, view_change
 from .conditions import Effects, condition_effects
 from .floor import FloorSpec, SceneSpec, rings_centroid
 from .obstacles import coverage, outline, texture, window
@@ -428,8 +429,8 @@ def _truth(floor: FloorSpec, scene: SceneSpec, effects: Effects, cam: Camera, fo
         obstacles = [cam.floor_to_image(_densify(p, 3.0)) for p in polys]
     camera = {"tilt_deg": list(cam.tilt), "distortion_k1": cam.distortion, "homography": cam.h.tolist()}
     if view is not None:
-        centres = _apply(view, centres)
-        obstacles = [_apply(view, p) for p in obstacles]
+        centres = apply_homography(view, centres)
+        obstacles = [apply_homography(view, p) for p in obstacles]
         dx, dy, rot, scale = motion if motion is not None else (0.0, 0.0, 0.0, 1.0)
         camera["motion"] = {"shift_px": [dx, dy], "rotation_deg": rot, "scale": scale, "matrix": view.tolist()}
         if effects.sag is not None:
