@@ -499,9 +499,10 @@ class Detector:
             cut = _out_of_view(ex, ey, gray.shape) if motion.moved else None
             # (the scratch repair reads a whole symbol's window, and a partly seen symbol is no
             # proof that the matcher does not fit: those cells are neither broken nor plain)
-            whole: bool | np.ndarray = True
+            whole = np.ones(len(missing), bool)
             if cut is not None:
-                kept, probed, whole = kept | cut, probed & ~cut, ~cut.any(axis=1)
+                kept, probed = kept | cut, probed & ~cut
+                whole = ~np.asarray(cut.any(axis=1))  # (the stubs allow a scalar)
             intact = intact_edges(kept, max_break=self._scratch_points[missing], gap=self._break_gap[missing],
                                   probed=probed)
             last.intact[missing] = intact
