@@ -499,7 +499,10 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
         inside = np.zeros_like(thin)
         cv2.fillPoly(inside, [np.rint((outline - (x0, y0)) * 16).astype(np.int32)], 1, cv2.LINE_8, shift=4)
         core = cv2.erode(inside, deep)
-        if not ((core > 0) & (thin > 0)).any() or not _scratch_like(patch, thin, inside, v, step):
+        if not ((core > 0) & (thin > 0)).any():
+            continue
+        scratched, courses = _scratch_like(patch, thin, inside, v, step)
+        if not scratched:
             continue
         # The symbol is scratched: every thin bright line in its window is taken for wear (a
         # scratch leaves the ink in pieces: the piece that reaches the interior vouches for the
@@ -509,7 +512,10 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
         # blur and the opening reads floor there), outside with the opened image.
         # (each piece inside the symbol with ink beside it: a striped object over a scratched
         # symbol has its own surface beside its light stripes, which are not painted over)
-        thin = thin & ~_foreign_pieces(patch, thin, inside, v, step)
+        foreign = _foreign_pieces(patch, thin, inside, v, step)
+        if foreign.any():
+            thin = thin & ~foreign
+            courses = None
         scratch = cv2.dilate(thin, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))) > 0
         repaired = patch.copy()
         repaired[scratch] = opened[scratch]
@@ -517,7 +523,9 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
         # half the step is the ink between the scratch and the edge, lost in the blur)
         # A straight scratch that runs out along the edge leaves no thin line there (it merges with
         # the floor): its straight course on from the line it left inside does.
-        beside = cv2.dilate(thin | _straight_courses(thin & inside), cv2.getStructuringElement(
+        # (the courses _scratch_like drew are these lines' when no piece was foreign)
+        courses = _straight_courses(thin & inside) if courses is None else courses
+        beside = cv2.dilate(thin | courses, cv2.getStructuringElement(
             cv2.MORPH_ELLIPSE, (2 * SCRATCH_WIDTH_PX + 3,) * 2)) > 0
         ink = float(median(v[0]))
         # (halfway from the ink to the floor: the painted symbol's edge, and its test's threshold)
@@ -600,8 +608,11 @@ SCRATCH_FLOOR_LEVEL = 0.35
 SCRATCH_PIECES_FLOOR_LEVEL = 0.2
 
 
-def _scratch_like(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, levels: np.ndarray, step: float) -> bool:
+def _scratch_like(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, levels: np.ndarray, step: float
+                  ) -> tuple[bool, np.ndarray | None]:
     """Are the thin bright lines over a symbol scratches in its ink, not an obstacle's texture?
+    And the lines' straight courses inside the symbol (:func:`_straight_courses`), when the test
+    got as far as drawing them (None before).
 
     A scratch is a long, floor-coloured line with ink on both sides; a striped or labelled
     obstacle over the symbol makes many lines, short ones, or lines with its own surface around
@@ -614,12 +625,12 @@ def _scratch_like(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, level
     covered = int(over.sum())
     # (a long scratch corner to corner covers more, but as one thin straight line)
     if covered > SCRATCH_MAX_AREA * area and covered > (SCRATCH_WIDTH_PX + 3) * _straight_length(over):
-        return False
+        return False, None
     n, labels, stats, _ = components(over.astype(np.uint8))
     # (a few pixels left where the line grazes the outline's antialiased edge are no line of their own)
     lines = stats[1:][stats[1:, cv2.CC_STAT_AREA] >= SCRATCH_SPECK_PX]
     if not 1 <= len(lines) <= SCRATCH_MAX_LINES:
-        return False
+        return False, None
     # a line runs across a good part of the symbol; a scratch that passes close to the edge is left
     # in pieces along one straight line, which count together (an obstacle's stripes lie side by side)
     # (one of those pieces, though, is long: short bits in a row are an obstacle's edge)
@@ -629,21 +640,22 @@ def _scratch_like(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, level
     if in_pieces:
         pieces = np.isin(labels, np.flatnonzero(np.r_[0, stats[1:, cv2.CC_STAT_AREA]] >= SCRATCH_SPECK_PX))
         if len(lines) < 2 or longest < need / 2 or _straight_length(pieces) < need:
-            return False
+            return False, None
     # the lines are floor-coloured (pieces in a row, which an obstacle's edge can make, closer to
     # the floor's level), and the pixels beside them, inside the symbol (away from its blurred
     # edge), ink
     floor, ink = percentile(levels[1], 50), percentile(levels[0], 25)
     darker = SCRATCH_PIECES_FLOOR_LEVEL if in_pieces else SCRATCH_FLOOR_LEVEL
     if float(median(patch[over])) < floor - darker * step:
-        return False
+        return False, None
     # (a scratch's own pixels where the thin-line mask has gaps along it lie on its course)
-    beside = _beside(thin, thin | _straight_courses(over.astype(np.uint8)), _core(inside))
+    courses = _straight_courses(over.astype(np.uint8))
+    beside = _beside(thin, thin | courses, _core(inside))
     if not beside.any():
-        return False
+        return False, courses
     around = patch[beside].astype(np.float32)
     return (float(median(around)) <= ink + SCRATCH_INK_LEVEL * step
-            and percentile(around, 90) <= ink + 2 * SCRATCH_INK_LEVEL * step)
+            and percentile(around, 90) <= ink + 2 * SCRATCH_INK_LEVEL * step), courses
 
 
 def _foreign_pieces(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, levels: np.ndarray,
