@@ -13,6 +13,7 @@ import numpy as np
 from sbplan.contracts import Binarizer, option
 from sbplan.errors import InputError
 from sbplan.imageio import as_gray
+from sbplan.morphology import open_square
 
 
 @dataclass(kw_only=True, frozen=True)
@@ -153,14 +154,9 @@ class LocalThresholdBinarizer(Binarizer):
         if opening > 1:
             # Shadow rims and texture lines are thin dark streaks; where one touches a symbol it
             # welds onto the symbol's outline. An opening removes streaks thinner than the square.
-            ink = cv2.morphologyEx(ink, cv2.MORPH_OPEN, _square(opening))
+            # (shift-free for an even side too: sbplan.morphology)
+            ink = open_square(ink, opening)
         return ink
-
-
-@functools.lru_cache(maxsize=8)
-def _square(side: int) -> np.ndarray:
-    """The opening's structuring element (made once, not per frame)."""
-    return cv2.getStructuringElement(cv2.MORPH_RECT, (side, side))
 
 
 def _reduce(gray: np.ndarray, f: int) -> np.ndarray:
