@@ -477,6 +477,16 @@ def refine(centres_px: np.ndarray, cells: np.ndarray, cell_centres_px: np.ndarra
     if ok.sum() < MIN_SYMBOLS:
         return coarse
     src, dst = cell_centres_px[cells[ok]], centres_px[ok]
+    # A grey-level centre reads everything dark in its window: an object's edge there pulls it
+    # off its symbol by pixels (a dark disc beside a free symbol: 14 px). The outlines' movement
+    # placed every one of these symbols within RANSAC's distance; a centre it does not place there
+    # is left out before any fit (with the few symbols a mostly covered floor shows, one such
+    # centre drags a least-squares fit past every trimming: the frame was refused).
+    pitch = float(min(grid.pitch_px))
+    near = _distances(apply(coarse.matrix, src), dst) <= max(INLIER_PX, RANSAC_PITCH * pitch)
+    if near.sum() < MIN_SYMBOLS:
+        return coarse
+    src, dst = src[near], dst[near]
     tilted = _trimmed_homography(src, dst) if coarse.model == "homography" else None
     if tilted is not None:
         # (the outlines already showed a view no similarity follows: its trimming would drop the
@@ -492,8 +502,7 @@ def refine(centres_px: np.ndarray, cells: np.ndarray, cell_centres_px: np.ndarra
             rms_h = float(np.sqrt(np.mean(np.sum((apply(h, src[keep]) - dst[keep]) ** 2, axis=1))))
             if rms_h < HOMOGRAPHY_GAIN * rms:
                 matrix, rms, model = h, rms_h, "homography"
-    motion = _motion(matrix, rms, int(keep.sum()), model, image_shape, grid, float(min(grid.pitch_px)),
-                     coarse.ambiguous_pitch)
+    motion = _motion(matrix, rms, int(keep.sum()), model, image_shape, grid, pitch, coarse.ambiguous_pitch)
     if coarse.warning and coarse.ambiguous_pitch and motion.warning != coarse.warning:
         object.__setattr__(motion, "warning", coarse.warning if motion.warning is None
                            else f"{motion.warning}; {coarse.warning.split('; ')[-1]}")
