@@ -177,3 +177,37 @@ def test_objects_put_on_a_worn_floor_are_read_locally_as_the_whole_frame_reads_t
     bumped, _ = render_scene(FLOOR, SceneSpec(n_obstacles=0, effects={"wear": 1.0, "motion": (6.0, 4.0, 0.5, 1.0)}),
                              seed=2)
     assert detector.find_cells_local(bumped, [(0, 0, FLOOR.width, FLOOR.height)]) is None
+
+
+# Large symbols (130 px across, as a 4K camera shows a 10 x 5 grid): worked on at half size, where
+# the binarizer's opening is 4 px, an even side.
+LARGE = FloorSpec(width=1440, height=1080, cols=4, rows=3)
+
+
+@pytest.fixture(scope="module")
+def large_calibration() -> Calibration:
+    return calibrate(render_reference(LARGE, seed=0))
+
+
+def test_large_symbols_are_worked_on_at_half_size_with_an_even_opening(large_calibration):
+    detector = Detector(large_calibration)
+    assert detector.work.factor == 2 and detector.binarizer.opening % 2 == 0
+
+
+@pytest.mark.parametrize("motion", [None, (2.5, -1.5, 0.2, 1.0)], ids=["still", "moved"])
+@pytest.mark.parametrize("seed", [1, 5])
+def test_a_worn_empty_floor_of_large_symbols_is_all_free(large_calibration, seed, motion):
+    # (the scratched symbols' repaired windows were read at the frame's resolution against
+    # allowances measured at half of it, after an opening that moved the ink a pixel: called hidden)
+    effects = {"wear": 1.0} if motion is None else {"wear": 1.0, "motion": motion}
+    image, _ = render_scene(LARGE, SceneSpec(n_obstacles=0, effects=effects), seed=seed)
+    cells = Detector(large_calibration).find_cells(image)
+    assert cells.symbols_rescued > 0  # scratched symbols were there to be repaired
+    assert not cells.occupied.any(), np.argwhere(cells.occupied).tolist()
+
+
+@pytest.mark.parametrize("seed", [1, 5])
+def test_objects_on_a_worn_floor_of_large_symbols_are_found(large_calibration, seed):
+    image, truth = render_scene(LARGE, SceneSpec(n_obstacles=2, effects={"wear": 1.0}), seed=seed)
+    scores = score_cells(Detector(large_calibration).find_cells(image).occupied, truth.cells)
+    assert scores.tp > 0 and scores.fn == 0 and scores.fp == 0

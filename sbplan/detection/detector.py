@@ -14,6 +14,7 @@ import time
 from dataclasses import dataclass, fields, replace
 from typing import Any, Unpack
 
+import cv2
 import numpy as np
 
 from ..contracts import (Binarizer, ContourApproximator, ContourExtractor, DescriptorMatcher, FootprintRefiner,
@@ -21,14 +22,15 @@ from ..contracts import (Binarizer, ContourApproximator, ContourExtractor, Descr
                          StageChoices, array_of, call_stage, describe_value, stage_failure)
 from ..errors import CameraMotionError, ContourError, DetectionError, NoFloorError
 from ..imageio import ImageInput, as_gray, load_image
-from ..polygons import PolygonBatch, centroids, resample_complex, signed_areas
+from ..polygons import PolygonBatch, centroids, resample_closed, resample_complex, signed_areas
 from .bands import RowBands
 from .calibration.file import Calibration, load_calibration
 from .calibration.shapes import length_filter_steps
 from .obstacles import obstacles_from_outlines
 from .outline_checks import (EDGE_DEPTH_PX, EDGE_SAMPLES, EDGE_UNPROBED, scratch_points, INNER_MARGIN_PX, SAMPLES, edge_factors, edge_kept,
                              edge_probes, hidden_piece, intact_edges, reference_samples, samples_deviation,
-                             repaired_piece_hidden, scratches_repaired, signed_distance_map)
+                             ink_piece_hidden, repaired_piece_hidden, scratches_repaired,
+                             signed_distance_map)
 from .registration import MIN_SYMBOLS, CameraMotion, apply, centre_window, grey_centres, refine, register_pairs
 from .result import CellDetection, Detection
 from .working import WorkScale
@@ -526,7 +528,7 @@ class Detector:
                 last.repaired[need] = scratches_repaired(gray, outlines, ex, ey, self._edge_factors[need],
                                                          max_break=self._scratch_points[need],
                                                          gap=self._break_gap[need],
-                                                         piece_hidden=self._piece_hidden(need, motion))
+                                                         piece_hidden=self._piece_hidden(need, motion, gray))
             rescued = rescued | (last.broken & (last.repaired == 1))
         matched_count = int(last.found.sum())
         plain = int(last.plain.sum())
@@ -563,19 +565,62 @@ class Detector:
                              last.hit_centres[~last.hit_ok], timings, self.work.shape, motion,
                              symbols_rescued=len(whole))
 
-    def _piece_hidden(self, cells: np.ndarray, motion: CameraMotion):
+    def _piece_hidden(self, cells: np.ndarray, motion: CameraMotion, gray: np.ndarray):
         """The whole-symbol test :func:`scratches_repaired` asks of the repaired symbols of
-        ``cells`` (flat indices): the outline checks' inward test on the repaired window, with
-        the reference points where ``motion`` puts them."""
+        ``cells`` (flat indices) in the frame ``gray``: the outline checks' inward test
+        (:func:`ink_piece_hidden`) on the repaired window as the frame's binary image would show
+        it, with the reference points where ``motion`` puts them.
+
+        Symbols traced at the frame's resolution: the window thresholded halfway from its ink to
+        its floor (:func:`repaired_piece_hidden`). Symbols worked on in a reduced image
+        (:mod:`~sbplan.detection.working`): their outlines and allowances come from the
+        binarizer's ink there, and read at the frame's resolution every scratched symbol, and the
+        reference's own, lost a piece (4K, 10 x 5 cells). The window is then tested as a matched
+        symbol is: pasted into the frame's surroundings as far as the binarizer's local level
+        reaches, reduced and binarized (the frame's ink with the scratches painted over), with its
+        outline's common shift taken out. (At the frame's resolution the binarizer's ink, fatter
+        than the halfway threshold's, let an object over 6 % of a flag's tip pass.)"""
         lin = motion.matrix[:2, :2] / motion.scale
+        work, f = self.work, self.work.factor
+        wh, ww = work.work_shape
+        # how far (working pixels) the binarizer's mask looks, and the crop alignment it needs;
+        # without a promise, the whole frame is its surroundings
+        reach, step = self._locality if self._locality is not None else (max(wh, ww), 1)
 
         def hidden(i: int, repaired: np.ndarray, origin: tuple[int, int], level: float) -> bool:
             cell = int(cells[i])
             points, inward = self.ref_points[cell], self.inward[cell]
             if motion.moved:
                 points, inward = motion.to_frame(points), inward @ lin.T
-            return repaired_piece_hidden(repaired, origin, points, inward,
-                                         self.allowance[cell] * motion.scale, level)
+            if f == 1:
+                return repaired_piece_hidden(repaired, origin, points, inward,
+                                             self.allowance[cell] * motion.scale, level)
+            x0, y0 = origin
+            h, w = repaired.shape
+            # the window's whole working pixels, and the crop around them the binarizer needs
+            u0, v0, u1, v1 = -(-x0 // f), -(-y0 // f), (x0 + w) // f, (y0 + h) // f
+            if u1 - u0 < 3 or v1 - v0 < 3:
+                return False
+            cu0, cv0 = max(0, u0 - reach) // step * step, max(0, v0 - reach) // step * step
+            cu1, cv1 = min(ww, -(-(u1 + reach) // step) * step), min(wh, -(-(v1 + reach) // step) * step)
+            canvas = gray[cv0 * f:cv1 * f, cu0 * f:cu1 * f].copy()
+            canvas[y0 - cv0 * f:y0 - cv0 * f + h, x0 - cu0 * f:x0 - cu0 * f + w] = repaired
+            small = _reduced(canvas, f)
+            ink = call_stage(self.binarizer, "binarize", small, returns=_mask_of(small.shape))
+            ink = np.asarray(ink)[v0 - cv0:v1 - cv0, u0 - cu0:u1 - cu0]
+            corner = np.array([u0, v0], np.float64)
+
+            def common_shift(outline: np.ndarray) -> float:
+                # the ink outline's shift against the reference outline, as _accepted measures a
+                # matched symbol's (in the calibration's pixels, then the working image's)
+                xy = work.to_frame(resample_closed(outline, SAMPLES) + corner)
+                if motion.moved:
+                    xy = motion.to_calibration(xy)
+                _, shift = samples_deviation(xy[None, :, 0], xy[None, :, 1], self.distance_map)
+                return float(shift[0]) * motion.scale / f
+
+            return ink_piece_hidden(ink, (u0, v0), work.to_work(points), inward,
+                                    self.allowance[cell] * motion.scale / f, common_shift=common_shift)
         return hidden
 
     def _symbols(self, gray: np.ndarray, bands: RowBands | None, lap) -> tuple:
@@ -726,6 +771,19 @@ class Detector:
 #: A cell whose symbol the camera's movement put partly out of the frame is judged by the edge
 #: points in view when at least this share of them is (else it stays occupied: unseen is not free).
 IN_VIEW_SHARE = 0.5
+
+
+def _reduced(image: np.ndarray, factor: int) -> np.ndarray:
+    """A crop of the frame (its sides multiples of ``factor``, starting on a multiple of it) at the
+    working resolution, as :meth:`WorkScale.reduce` reduces the whole frame (area-averaging
+    halvings): the same pixels as the whole frame's reduction there."""
+    f = factor
+    while f > 1 and f % 2 == 0:
+        image = cv2.resize(image, (image.shape[1] // 2, image.shape[0] // 2), interpolation=cv2.INTER_AREA)
+        f //= 2
+    if f > 1:
+        image = cv2.resize(image, (image.shape[1] // f, image.shape[0] // f), interpolation=cv2.INTER_AREA)
+    return image
 
 
 def _out_of_view(x: np.ndarray, y: np.ndarray, shape: tuple[int, int]) -> np.ndarray | None:

@@ -544,23 +544,16 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
 def repaired_piece_hidden(repaired: np.ndarray, origin: tuple[int, int], points: np.ndarray, inward: np.ndarray,
                           allowance: np.ndarray, threshold: float) -> bool:
     """Has a symbol whose scratches were painted over (:func:`scratches_repaired`) lost a piece of
-    its reference outline? :func:`hidden_piece`'s test on the repaired window.
-
-    The repaired window is thresholded at ``threshold`` (a grey level between the symbol's ink and
-    the floor) and opened with a 3-pixel square; each reference point is moved into the symbol by
-    its allowance and must find ink there, or lie within that distance of the ink's outline (the
-    threshold halfway to the floor puts the outline where the reference's is: no common shift).
+    its reference outline? :func:`ink_piece_hidden` on the repaired window thresholded at
+    ``threshold`` (a grey level between the symbol's ink and the floor) and opened with a 3-pixel
+    square, with no common shift (the threshold halfway to the floor puts the outline on the
+    reference's, when the reference outlines were traced at the frame's resolution).
 
     Parameters
     ----------
     repaired : ndarray (h, w), uint8
         The window with the scratches painted over.
-    origin : (x0, y0)
-        The window's corner in the frame.
-    points, inward : ndarray (S, 2)
-        The cell's reference points and inward unit normals ``(x, y)`` in the frame's pixels.
-    allowance : ndarray (S,)
-        Each point's allowance in the frame's pixels (calibrated tolerance plus the margin).
+    origin, points, inward, allowance : as :func:`ink_piece_hidden`.
     threshold : float
         Grey level below which a pixel is ink.
 
@@ -568,15 +561,47 @@ def repaired_piece_hidden(repaired: np.ndarray, origin: tuple[int, int], points:
     -------
     bool
     """
-    # opened as the binarizer opens the frames the calibrated tolerances were measured on (they
-    # hold the tips it wears down)
     ink = cv2.morphologyEx((repaired < threshold).astype(np.uint8), cv2.MORPH_OPEN,
                            cv2.getStructuringElement(cv2.MORPH_RECT, (3, 3)))
+    return ink_piece_hidden(ink, origin, points, inward, allowance)
+
+
+def ink_piece_hidden(ink: np.ndarray, origin: tuple[int, int], points: np.ndarray, inward: np.ndarray,
+                     allowance: np.ndarray, *, common_shift: Callable[[np.ndarray], float] | None = None) -> bool:
+    """Has the symbol in a window's ink lost a piece of its reference outline? :func:`hidden_piece`'s
+    test on one window: each reference point is moved into the symbol by its allowance plus the
+    ink outline's common inward shift and must find ink there, or lie within that distance of a
+    piece of the ink's outline (scratches leave the ink in pieces).
+
+    Parameters
+    ----------
+    ink : ndarray (h, w), uint8 or bool
+        The window's ink.
+    origin : (x0, y0)
+        The window's corner in the image the points are given in.
+    points, inward : ndarray (S, 2)
+        The cell's reference points and inward unit normals ``(x, y)`` in that image's pixels.
+    allowance : ndarray (S,)
+        Each point's allowance in those pixels (calibrated tolerance plus the margin).
+    common_shift : callable, optional
+        ``common_shift(outline)``: the common shift (:func:`samples_deviation`'s, in the window's
+        pixels) of the largest piece of ink's outline (k, 2), in the window's pixels ``(x, y)``.
+        Default: none.
+
+    Returns
+    -------
+    bool
+    """
+    ink = np.asarray(ink).astype(np.uint8)
     contours, _ = cv2.findContours(ink, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
     if not contours:
         return True
     pts = np.asarray(points, np.float64) - np.asarray(origin, np.float64)
-    depth = np.maximum(np.asarray(allowance, np.float64), 0.5)
+    depth = np.asarray(allowance, np.float64)
+    if common_shift is not None:
+        outline = max(contours, key=cv2.contourArea).reshape(-1, 2)
+        depth = depth + inward_shift(np.float64(common_shift(outline)))
+    depth = np.maximum(depth, 0.5)
     q = (pts + (depth - _PIXEL_CENTRE_BIAS)[:, None] * inward).astype(np.float32)
     shallow = cv2.remap(ink, q[None, :, 0], q[None, :, 1], cv2.INTER_LINEAR,
                         borderMode=cv2.BORDER_CONSTANT)[0] == 0
