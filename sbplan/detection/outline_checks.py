@@ -600,7 +600,7 @@ def ink_piece_hidden(ink: np.ndarray, origin: tuple[int, int], points: np.ndarra
     depth = np.asarray(allowance, np.float64)
     if common_shift is not None:
         outline = max(contours, key=cv2.contourArea).reshape(-1, 2)
-        depth = depth + inward_shift(np.float64(common_shift(outline)))
+        depth = depth + inward_shift(np.array([common_shift(outline)]))[0]
     depth = np.maximum(depth, 0.5)
     q = (pts + (depth - _PIXEL_CENTRE_BIAS)[:, None] * inward).astype(np.float32)
     shallow = cv2.remap(ink, q[None, :, 0], q[None, :, 1], cv2.INTER_LINEAR,
