@@ -501,15 +501,17 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
         core = cv2.erode(inside, deep)
         if not ((core > 0) & (thin > 0)).any() or not _scratch_like(patch, thin, inside, v, step):
             continue
-        # The symbol is scratched: every thin bright line in its window is taken for wear (a
-        # scratch leaves the ink in pieces: the piece that reaches the interior vouches for the
-        # pieces beside the edge), with the antialiased pixels along it, which fall short of the
-        # level. Inside the reference outline it is painted with the symbol's ink (where the
-        # scratch runs within a pixel or two of the edge, the ink between them is lost in the
-        # blur and the opening reads floor there), outside with the opened image.
+        # The symbol is scratched: the thin bright lines that reach its interior are taken for
+        # wear, with the pieces on their straight courses (a scratch leaves the ink in pieces: the
+        # piece that reaches the interior vouches for the pieces beside the edge in line with it)
+        # and the antialiased pixels along them, which fall short of the level. Inside the
+        # reference outline they are painted with the symbol's ink (where the scratch runs within
+        # a pixel or two of the edge, the ink between them is lost in the blur and the opening
+        # reads floor there), outside with the opened image. A thin bright piece elsewhere (the
+        # light part of an object over a tip or a corner of the symbol) is no scratch's and stays.
         # (each piece inside the symbol with ink beside it: a striped object over a scratched
         # symbol has its own surface beside its light stripes, which are not painted over)
-        thin = thin & ~_foreign_pieces(patch, thin, inside, v, step)
+        thin = _scratch_lines(thin & ~_foreign_pieces(patch, thin, inside, v, step), core)
         scratch = cv2.dilate(thin, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))) > 0
         repaired = patch.copy()
         repaired[scratch] = opened[scratch]
@@ -712,6 +714,32 @@ def _straight_courses(mask: np.ndarray) -> np.ndarray:
         a, b = centre - reach * direction, centre + reach * direction
         cv2.line(out, (int(round(a[0])), int(round(a[1]))), (int(round(b[0])), int(round(b[1]))), 1, 1)
     return out
+
+
+def _scratch_lines(thin: np.ndarray, core: np.ndarray) -> np.ndarray:
+    """The pieces of the thin bright lines ``thin`` (H, W; 0/1 uint8) that are a scratch's: those
+    that reach ``core`` (0/1 uint8: the symbol's interior, a scratch's depth inside its outline),
+    and those that lie wholly within :data:`SCRATCH_STRAIGHT_PX` (whole pixels) of the straight
+    course (:func:`_straight_courses`) of such a piece's part in ``core``. uint8 0/1."""
+    n, labels = cv2.connectedComponents(thin, connectivity=8)
+    deep = np.zeros(n, bool)
+    deep[labels[(core > 0) & (thin > 0)]] = True
+    deep[0] = False
+    keep = deep.copy()
+    # (the course of the part in the interior: beyond the edge a scratch merges with the floor
+    # and its piece of the thin-line mask may take in whatever bright lies there)
+    courses = _straight_courses(deep[labels].astype(np.uint8) & core)
+    if courses.any():
+        reach = int(SCRATCH_STRAIGHT_PX)
+        band = cv2.dilate(courses, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach + 1,) * 2)) > 0
+        lit = thin > 0
+        on = np.zeros(n, bool)
+        on[labels[lit & band]] = True
+        off = np.zeros(n, bool)
+        off[labels[lit & ~band]] = True
+        keep |= on & ~off
+    keep[0] = False
+    return keep[labels].astype(np.uint8)
 
 
 def _straight_length(mask: np.ndarray) -> float:
