@@ -499,7 +499,7 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
         inside = np.zeros_like(thin)
         cv2.fillPoly(inside, [np.rint((outline - (x0, y0)) * 16).astype(np.int32)], 1, cv2.LINE_8, shift=4)
         core = cv2.erode(inside, deep)
-        if not ((core > 0) & (thin > 0)).any() or not _scratch_like(patch, thin, inside, v, step):
+        if not ((core > 0) & (thin > 0)).any() or not _scratch_like(patch, thin, inside, v, step, core):
             continue
         # The symbol is scratched: the thin bright lines that reach its interior are taken for
         # wear, with the pieces on their straight courses (a scratch leaves the ink in pieces: the
@@ -587,8 +587,10 @@ def repaired_piece_hidden(repaired: np.ndarray, origin: tuple[int, int], points:
 #: has many lines, or lines with its own surface around them.
 SCRATCH_MAX_LINES = 3
 SCRATCH_MAX_AREA = 0.16
-#: ... together at least this part of the symbol's size across; pieces of fewer pixels than
-#: SCRATCH_SPECK_PX are not counted.
+#: A line shorter than this part of the symbol's size across is taken for the part inside the ink
+#: of a scratch that runs on along the edge, or left in pieces by passing close to it, and its
+#: pieces must read closer to the floor's level (SCRATCH_PIECES_FLOOR_LEVEL); pieces of fewer
+#: pixels than SCRATCH_SPECK_PX are not counted.
 SCRATCH_MIN_LENGTH = 0.4
 SCRATCH_SPECK_PX = 3
 #: A scratch's pixels lie within this distance of its middle line (half the widest scratch, its
@@ -602,16 +604,22 @@ SCRATCH_FLOOR_LEVEL = 0.35
 SCRATCH_PIECES_FLOOR_LEVEL = 0.2
 
 
-def _scratch_like(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, levels: np.ndarray, step: float) -> bool:
+def _scratch_like(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, levels: np.ndarray, step: float,
+                  core: np.ndarray) -> bool:
     """Are the thin bright lines over a symbol scratches in its ink, not an obstacle's texture?
 
-    A scratch is a long, floor-coloured line with ink on both sides; a striped or labelled
-    obstacle over the symbol makes many lines, short ones, or lines with its own surface around
-    them. ``thin`` and ``inside`` (the reference outline's interior) are 0/1 masks over
-    ``patch``; ``levels`` the edge probes' grey levels (2, S), inside first; ``step`` the median
-    ink-to-floor step.
+    A scratch is a straight, floor-coloured line with ink on both sides; a striped or labelled
+    obstacle over the symbol makes many lines, or lines with its own surface around them.
+    ``thin``, ``inside`` (the reference outline's interior) and ``core`` (the interior a scratch
+    reaches, :data:`SCRATCH_DEPTH_PX` inside) are 0/1 masks over ``patch``; ``levels`` the edge
+    probes' grey levels (2, S), inside first; ``step`` the median ink-to-floor step.
+
+    The lines judged are the ones the repair paints (:func:`_scratch_lines`): those that reach
+    the interior and the pieces in line with them. The short thin bright pieces the symbol's own
+    acute notch leaves along its edge, or floor pinched between the edge and a dirt speck, are no
+    line across it, and counted as lines they turned scratched symbols into obstacles.
     """
-    over = (thin > 0) & (inside > 0)
+    over = _scratch_lines((thin & inside).astype(np.uint8), core) > 0
     area = max(int(inside.sum()), 1)
     covered = int(over.sum())
     # (a long scratch corner to corner covers more, but as one thin straight line)
@@ -622,15 +630,17 @@ def _scratch_like(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, level
     lines = stats[1:][stats[1:, cv2.CC_STAT_AREA] >= SCRATCH_SPECK_PX]
     if not 1 <= len(lines) <= SCRATCH_MAX_LINES:
         return False
-    # a line runs across a good part of the symbol; a scratch that passes close to the edge is left
-    # in pieces along one straight line, which count together (an obstacle's stripes lie side by side)
-    # (one of those pieces, though, is long: short bits in a row are an obstacle's edge)
+    # A scratch that runs on along the edge shows a short line inside the ink only, and one that
+    # passes close to the edge is left in pieces: short lines must lie along one straight course
+    # a scratch's piece has (at least SCRATCH_COURSE_PX long). Asking such a line to run across
+    # much of the symbol made those scratches obstacles; an object over the symbol beside the
+    # line is the edge probes' to see once the line alone is painted over (_scratch_lines).
     need = SCRATCH_MIN_LENGTH * np.sqrt(area)
     longest = float(np.hypot(lines[:, cv2.CC_STAT_WIDTH], lines[:, cv2.CC_STAT_HEIGHT]).max())
     in_pieces = longest < need
     if in_pieces:
         pieces = np.isin(labels, np.flatnonzero(np.r_[0, stats[1:, cv2.CC_STAT_AREA]] >= SCRATCH_SPECK_PX))
-        if len(lines) < 2 or longest < need / 2 or _straight_length(pieces) < need:
+        if _straight_length(pieces) < SCRATCH_COURSE_PX:
             return False
     # the lines are floor-coloured (pieces in a row, which an obstacle's edge can make, closer to
     # the floor's level), and the pixels beside them, inside the symbol (away from its blurred
