@@ -499,7 +499,11 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
         inside = np.zeros_like(thin)
         cv2.fillPoly(inside, [np.rint((outline - (x0, y0)) * 16).astype(np.int32)], 1, cv2.LINE_8, shift=4)
         core = cv2.erode(inside, deep)
-        if not ((core > 0) & (thin > 0)).any() or not _scratch_like(patch, thin, inside, v, step, core):
+        if not ((core > 0) & (thin > 0)).any():
+            continue
+        # (the lines the test judges are the ones painted below: worked out once)
+        lines = _scratch_lines(thin, core)
+        if not _scratch_like(patch, thin, inside, v, step, lines & inside):
             continue
         # The symbol is scratched: the thin bright lines that reach its interior are taken for
         # wear, with the pieces on their straight courses (a scratch leaves the ink in pieces: the
@@ -511,7 +515,7 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
         # light part of an object over a tip or a corner of the symbol) is no scratch's and stays.
         # (each piece inside the symbol with ink beside it: a striped object over a scratched
         # symbol has its own surface beside its light stripes, which are not painted over)
-        thin = _scratch_lines(thin & ~_foreign_pieces(patch, thin, inside, v, step), core)
+        thin = lines & ~_foreign_pieces(patch, thin, inside, v, step)
         scratch = cv2.dilate(thin, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))) > 0
         repaired = patch.copy()
         repaired[scratch] = opened[scratch]
@@ -605,21 +609,22 @@ SCRATCH_PIECES_FLOOR_LEVEL = 0.2
 
 
 def _scratch_like(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, levels: np.ndarray, step: float,
-                  core: np.ndarray) -> bool:
+                  scratch_lines: np.ndarray) -> bool:
     """Are the thin bright lines over a symbol scratches in its ink, not an obstacle's texture?
 
     A scratch is a straight, floor-coloured line with ink on both sides; a striped or labelled
     obstacle over the symbol makes many lines, or lines with its own surface around them.
-    ``thin``, ``inside`` (the reference outline's interior) and ``core`` (the interior a scratch
-    reaches, :data:`SCRATCH_DEPTH_PX` inside) are 0/1 masks over ``patch``; ``levels`` the edge
-    probes' grey levels (2, S), inside first; ``step`` the median ink-to-floor step.
+    ``thin`` (every thin bright feature), ``inside`` (the reference outline's interior) and
+    ``scratch_lines`` are 0/1 masks over ``patch``; ``levels`` the edge probes' grey levels (2, S),
+    inside first; ``step`` the median ink-to-floor step.
 
-    The lines judged are the ones the repair paints (:func:`_scratch_lines`): those that reach
-    the interior and the pieces in line with them. The short thin bright pieces the symbol's own
-    acute notch leaves along its edge, or floor pinched between the edge and a dirt speck, are no
-    line across it, and counted as lines they turned scratched symbols into obstacles.
+    The lines judged, ``scratch_lines``, are the ones the repair paints, inside the outline
+    (:func:`_scratch_lines`: the thin bright pieces that reach :data:`SCRATCH_DEPTH_PX` into the
+    symbol and the pieces in line with them). The short thin bright pieces the symbol's own acute
+    notch leaves along its edge, or floor pinched between the edge and a dirt speck, are no line
+    across it, and counted as lines they turned scratched symbols into obstacles.
     """
-    over = _scratch_lines((thin & inside).astype(np.uint8), core) > 0
+    over = scratch_lines > 0
     area = max(int(inside.sum()), 1)
     covered = int(over.sum())
     # (a long scratch corner to corner covers more, but as one thin straight line)
@@ -691,11 +696,14 @@ def _beside(lines: np.ndarray, own: np.ndarray, core: np.ndarray) -> np.ndarray:
     return (cv2.dilate(lines, np.ones((7, 7), np.uint8)) > 0) & ~(cv2.dilate(own, np.ones((3, 3), np.uint8)) > 0) & core
 
 
-def _principal_axes(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _principal_axes(mask: np.ndarray, origin: tuple[int, int] = (0, 0)
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The pixels of ``mask`` (H, W; at least two) about their principal axis: their centre
-    ``(x, y)``, the axis' unit direction, and each pixel's signed distance across it and along it."""
+    ``(x, y)``, the axis' unit direction, and each pixel's signed distance across it and along it.
+    ``mask`` may be a window of a larger mask whose corner is ``origin`` ``(x, y)``: the centre is
+    then the larger mask's."""
     rows, cols = np.nonzero(mask)
-    pts = np.stack([cols, rows], axis=1).astype(np.float64)
+    pts = np.stack([cols + origin[0], rows + origin[1]], axis=1).astype(np.float64)
     centre = pts.mean(axis=0)
     pts -= centre
     _, eigvecs = np.linalg.eigh(pts.T @ pts / len(pts))
@@ -715,9 +723,12 @@ def _straight_courses(mask: np.ndarray) -> np.ndarray:
     n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
     reach = float(sum(mask.shape))
     for k in range(1, n):
-        if stats[k, cv2.CC_STAT_AREA] < SCRATCH_SPECK_PX:
+        x, y, w, h = (int(v) for v in stats[k, :4])
+        # (pixel centres no farther apart than the box's diagonal: too short for a course)
+        if stats[k, cv2.CC_STAT_AREA] < SCRATCH_SPECK_PX or np.hypot(w - 1, h - 1) < SCRATCH_COURSE_PX:
             continue
-        centre, direction, across, along = _principal_axes(labels == k)
+        # (the piece's box only: a piece is a few dozen pixels of a window of thousands)
+        centre, direction, across, along = _principal_axes(labels[y:y + h, x:x + w] == k, (x, y))
         # (a speck has no direction of its own: its "course" would be drawn anywhere)
         if np.abs(across).max() > SCRATCH_STRAIGHT_PX or np.ptp(along) < SCRATCH_COURSE_PX:
             continue
@@ -732,13 +743,17 @@ def _scratch_lines(thin: np.ndarray, core: np.ndarray) -> np.ndarray:
     and those that lie wholly within :data:`SCRATCH_STRAIGHT_PX` (whole pixels) of the straight
     course (:func:`_straight_courses`) of such a piece's part in ``core``. uint8 0/1."""
     n, labels = cv2.connectedComponents(thin, connectivity=8)
+    inner = (core > 0) & (thin > 0)
     deep = np.zeros(n, bool)
-    deep[labels[(core > 0) & (thin > 0)]] = True
+    deep[labels[inner]] = True
     deep[0] = False
+    if deep[1:].all():
+        return thin  # (every piece reaches the interior: none to check for being in line)
     keep = deep.copy()
     # (the course of the part in the interior: beyond the edge a scratch merges with the floor
-    # and its piece of the thin-line mask may take in whatever bright lies there)
-    courses = _straight_courses(deep[labels].astype(np.uint8) & core)
+    # and its piece of the thin-line mask may take in whatever bright lies there; every thin
+    # pixel in the interior belongs to a piece that reaches it)
+    courses = _straight_courses(inner.astype(np.uint8))
     if courses.any():
         reach = int(SCRATCH_STRAIGHT_PX)
         band = cv2.dilate(courses, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach + 1,) * 2)) > 0
