@@ -490,21 +490,21 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
         core = cv2.erode(inside, deep)
         if not ((core > 0) & (thin > 0)).any():
             continue
-        scratched, courses = _scratch_like(patch, thin, inside, v, step)
-        if not scratched:
+        # (the lines the test judges are the ones painted below: worked out once)
+        lines = _scratch_lines(thin, core)
+        if not _scratch_like(patch, thin, inside, v, step, lines & inside):
             continue
-        # The symbol is scratched: every thin bright line in its window is taken for wear (a
-        # scratch leaves the ink in pieces: the piece that reaches the interior vouches for the
-        # pieces beside the edge), with the antialiased pixels along it, which fall short of the
-        # level. Inside the reference outline it is painted with the symbol's ink (where the
-        # scratch runs within a pixel or two of the edge, the ink between them is lost in the
-        # blur and the opening reads floor there), outside with the opened image.
+        # The symbol is scratched: the thin bright lines that reach its interior are taken for
+        # wear, with the pieces on their straight courses (a scratch leaves the ink in pieces: the
+        # piece that reaches the interior vouches for the pieces beside the edge in line with it)
+        # and the antialiased pixels along them, which fall short of the level. Inside the
+        # reference outline they are painted with the symbol's ink (where the scratch runs within
+        # a pixel or two of the edge, the ink between them is lost in the blur and the opening
+        # reads floor there), outside with the opened image. A thin bright piece elsewhere (the
+        # light part of an object over a tip or a corner of the symbol) is no scratch's and stays.
         # (each piece inside the symbol with ink beside it: a striped object over a scratched
         # symbol has its own surface beside its light stripes, which are not painted over)
-        foreign = _foreign_pieces(patch, thin, inside, v, step)
-        if foreign.any():
-            thin = thin & ~foreign
-            courses = None
+        thin = lines & ~_foreign_pieces(patch, thin, inside, v, step)
         scratch = cv2.dilate(thin, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))) > 0
         repaired = patch.copy()
         repaired[scratch] = opened[scratch]
@@ -512,9 +512,7 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
         # half the step is the ink between the scratch and the edge, lost in the blur)
         # A straight scratch that runs out along the edge leaves no thin line there (it merges with
         # the floor): its straight course on from the line it left inside does.
-        # (the courses _scratch_like drew are these lines' when no piece was foreign)
-        courses = _straight_courses(thin & inside) if courses is None else courses
-        beside = cv2.dilate(thin | courses, cv2.getStructuringElement(
+        beside = cv2.dilate(thin | _straight_courses(thin & inside), cv2.getStructuringElement(
             cv2.MORPH_ELLIPSE, (2 * SCRATCH_WIDTH_PX + 3,) * 2)) > 0
         ink = float(median(v[0]))
         # (halfway from the ink to the floor: the painted symbol's edge, and its test's threshold)
@@ -607,8 +605,10 @@ def ink_piece_hidden(ink: np.ndarray, origin: tuple[int, int], points: np.ndarra
 #: has many lines, or lines with its own surface around them.
 SCRATCH_MAX_LINES = 3
 SCRATCH_MAX_AREA = 0.16
-#: ... together at least this part of the symbol's size across; pieces of fewer pixels than
-#: SCRATCH_SPECK_PX are not counted.
+#: A line shorter than this part of the symbol's size across is taken for the part inside the ink
+#: of a scratch that runs on along the edge, or left in pieces by passing close to it, and its
+#: pieces must read closer to the floor's level (SCRATCH_PIECES_FLOOR_LEVEL); pieces of fewer
+#: pixels than SCRATCH_SPECK_PX are not counted.
 SCRATCH_MIN_LENGTH = 0.4
 SCRATCH_SPECK_PX = 3
 #: A scratch's pixels lie within this distance of its middle line (half the widest scratch, its
@@ -622,54 +622,59 @@ SCRATCH_FLOOR_LEVEL = 0.35
 SCRATCH_PIECES_FLOOR_LEVEL = 0.2
 
 
-def _scratch_like(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, levels: np.ndarray, step: float
-                  ) -> tuple[bool, np.ndarray | None]:
+def _scratch_like(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, levels: np.ndarray, step: float,
+                  scratch_lines: np.ndarray) -> bool:
     """Are the thin bright lines over a symbol scratches in its ink, not an obstacle's texture?
-    And the lines' straight courses inside the symbol (:func:`_straight_courses`), when the test
-    got as far as drawing them (None before).
 
-    A scratch is a long, floor-coloured line with ink on both sides; a striped or labelled
-    obstacle over the symbol makes many lines, short ones, or lines with its own surface around
-    them. ``thin`` and ``inside`` (the reference outline's interior) are 0/1 masks over
-    ``patch``; ``levels`` the edge probes' grey levels (2, S), inside first; ``step`` the median
-    ink-to-floor step.
+    A scratch is a straight, floor-coloured line with ink on both sides; a striped or labelled
+    obstacle over the symbol makes many lines, or lines with its own surface around them.
+    ``thin`` (every thin bright feature), ``inside`` (the reference outline's interior) and
+    ``scratch_lines`` are 0/1 masks over ``patch``; ``levels`` the edge probes' grey levels (2, S),
+    inside first; ``step`` the median ink-to-floor step.
+
+    The lines judged, ``scratch_lines``, are the ones the repair paints, inside the outline
+    (:func:`_scratch_lines`: the thin bright pieces that reach :data:`SCRATCH_DEPTH_PX` into the
+    symbol and the pieces in line with them). The short thin bright pieces the symbol's own acute
+    notch leaves along its edge, or floor pinched between the edge and a dirt speck, are no line
+    across it, and counted as lines they turned scratched symbols into obstacles.
     """
-    over = (thin > 0) & (inside > 0)
+    over = scratch_lines > 0
     area = max(int(inside.sum()), 1)
     covered = int(over.sum())
     # (a long scratch corner to corner covers more, but as one thin straight line)
     if covered > SCRATCH_MAX_AREA * area and covered > (SCRATCH_WIDTH_PX + 3) * _straight_length(over):
-        return False, None
+        return False
     n, labels, stats, _ = components(over.astype(np.uint8))
     # (a few pixels left where the line grazes the outline's antialiased edge are no line of their own)
     lines = stats[1:][stats[1:, cv2.CC_STAT_AREA] >= SCRATCH_SPECK_PX]
     if not 1 <= len(lines) <= SCRATCH_MAX_LINES:
-        return False, None
-    # a line runs across a good part of the symbol; a scratch that passes close to the edge is left
-    # in pieces along one straight line, which count together (an obstacle's stripes lie side by side)
-    # (one of those pieces, though, is long: short bits in a row are an obstacle's edge)
+        return False
+    # A scratch that runs on along the edge shows a short line inside the ink only, and one that
+    # passes close to the edge is left in pieces: short lines must lie along one straight course
+    # a scratch's piece has (at least SCRATCH_COURSE_PX long). Asking such a line to run across
+    # much of the symbol made those scratches obstacles; an object over the symbol beside the
+    # line is the edge probes' to see once the line alone is painted over (_scratch_lines).
     need = SCRATCH_MIN_LENGTH * np.sqrt(area)
     longest = float(np.hypot(lines[:, cv2.CC_STAT_WIDTH], lines[:, cv2.CC_STAT_HEIGHT]).max())
     in_pieces = longest < need
     if in_pieces:
         pieces = np.isin(labels, np.flatnonzero(np.r_[0, stats[1:, cv2.CC_STAT_AREA]] >= SCRATCH_SPECK_PX))
-        if len(lines) < 2 or longest < need / 2 or _straight_length(pieces) < need:
-            return False, None
+        if _straight_length(pieces) < SCRATCH_COURSE_PX:
+            return False
     # the lines are floor-coloured (pieces in a row, which an obstacle's edge can make, closer to
     # the floor's level), and the pixels beside them, inside the symbol (away from its blurred
     # edge), ink
     floor, ink = percentile(levels[1], 50), percentile(levels[0], 25)
     darker = SCRATCH_PIECES_FLOOR_LEVEL if in_pieces else SCRATCH_FLOOR_LEVEL
     if float(median(patch[over])) < floor - darker * step:
-        return False, None
+        return False
     # (a scratch's own pixels where the thin-line mask has gaps along it lie on its course)
-    courses = _straight_courses(over.astype(np.uint8))
-    beside = _beside(thin, thin | courses, _core(inside))
+    beside = _beside(thin, thin | _straight_courses(over.astype(np.uint8)), _core(inside))
     if not beside.any():
-        return False, courses
+        return False
     around = patch[beside].astype(np.float32)
     return (float(median(around)) <= ink + SCRATCH_INK_LEVEL * step
-            and percentile(around, 90) <= ink + 2 * SCRATCH_INK_LEVEL * step), courses
+            and percentile(around, 90) <= ink + 2 * SCRATCH_INK_LEVEL * step)
 
 
 def _foreign_pieces(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, levels: np.ndarray,
@@ -736,10 +741,11 @@ def _straight_courses(mask: np.ndarray) -> np.ndarray:
     n, labels, stats, _ = components(mask)
     reach = float(sum(mask.shape))
     for k in range(1, n):
-        if stats[k, cv2.CC_STAT_AREA] < SCRATCH_SPECK_PX:
-            continue
-        # (the piece's own bounding box: a window holds several pieces, each read once)
         x, y, w, h = (int(v) for v in stats[k, :4])
+        # (pixel centres no farther apart than the box's diagonal: too short for a course)
+        if stats[k, cv2.CC_STAT_AREA] < SCRATCH_SPECK_PX or np.hypot(w - 1, h - 1) < SCRATCH_COURSE_PX:
+            continue
+        # (the piece's box only: a piece is a few dozen pixels of a window of thousands)
         centre, direction, across, along = _principal_axes(labels[y:y + h, x:x + w] == k, (x, y))
         # (a speck has no direction of its own: its "course" would be drawn anywhere)
         if np.abs(across).max() > SCRATCH_STRAIGHT_PX or np.ptp(along) < SCRATCH_COURSE_PX:
@@ -747,6 +753,36 @@ def _straight_courses(mask: np.ndarray) -> np.ndarray:
         a, b = centre - reach * direction, centre + reach * direction
         cv2.line(out, (int(round(a[0])), int(round(a[1]))), (int(round(b[0])), int(round(b[1]))), 1, 1)
     return out
+
+
+def _scratch_lines(thin: np.ndarray, core: np.ndarray) -> np.ndarray:
+    """The pieces of the thin bright lines ``thin`` (H, W; 0/1 uint8) that are a scratch's: those
+    that reach ``core`` (0/1 uint8: the symbol's interior, a scratch's depth inside its outline),
+    and those that lie wholly within :data:`SCRATCH_STRAIGHT_PX` (whole pixels) of the straight
+    course (:func:`_straight_courses`) of such a piece's part in ``core``. uint8 0/1."""
+    n, labels = cv2.connectedComponents(thin, connectivity=8)
+    inner = (core > 0) & (thin > 0)
+    deep = np.zeros(n, bool)
+    deep[labels[inner]] = True
+    deep[0] = False
+    if deep[1:].all():
+        return thin  # (every piece reaches the interior: none to check for being in line)
+    keep = deep.copy()
+    # (the course of the part in the interior: beyond the edge a scratch merges with the floor
+    # and its piece of the thin-line mask may take in whatever bright lies there; every thin
+    # pixel in the interior belongs to a piece that reaches it)
+    courses = _straight_courses(inner.astype(np.uint8))
+    if courses.any():
+        reach = int(SCRATCH_STRAIGHT_PX)
+        band = cv2.dilate(courses, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach + 1,) * 2)) > 0
+        lit = thin > 0
+        on = np.zeros(n, bool)
+        on[labels[lit & band]] = True
+        off = np.zeros(n, bool)
+        off[labels[lit & ~band]] = True
+        keep |= on & ~off
+    keep[0] = False
+    return keep[labels].astype(np.uint8)
 
 
 def _straight_length(mask: np.ndarray) -> float:

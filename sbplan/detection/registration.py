@@ -479,12 +479,14 @@ def refine(centres_px: np.ndarray, cells: np.ndarray, cell_centres_px: np.ndarra
         return coarse
     src, dst = cell_centres_px[cells[ok]], centres_px[ok]
     # A grey-level centre reads everything dark in its window: an object's edge there pulls it
-    # off its symbol by pixels (a dark disc beside a free symbol: 14 px). The outlines' movement
-    # placed every one of these symbols within RANSAC's distance; a centre it does not place there
+    # off its symbol by pixels (a dark disc beside a free symbol: 2-14 px). The outlines' movement
+    # placed every one of these symbols within a fraction of a pixel; a centre it does not place
+    # as near as the others (INLIER_PX, or TRIM_SIGMAS robust deviations when they scatter more)
     # is left out before any fit (with the few symbols a mostly covered floor shows, one such
     # centre drags a least-squares fit past every trimming: the frame was refused).
     pitch = float(min(grid.pitch_px))
-    near = _distances(apply(coarse.matrix, src), dst) <= max(INLIER_PX, RANSAC_PITCH * pitch)
+    off = _distances(apply(coarse.matrix, src), dst)
+    near = off <= min(max(INLIER_PX, TRIM_SIGMAS * 1.4826 * median(off)), RANSAC_PITCH * pitch + INLIER_PX)
     if near.sum() < MIN_SYMBOLS:
         return coarse
     src, dst = src[near], dst[near]
