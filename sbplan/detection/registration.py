@@ -184,9 +184,21 @@ class CameraMotion:
         (residual e px, n symbols, model)``."""
         if self.model == "none":
             return "camera: movement not estimated"
-        return (f"camera: shift ({self.shift_px[0]:+.2f}, {self.shift_px[1]:+.2f}) px, rotation "
-                f"{self.rotation_deg:+.3f} deg, scale {self.scale:.4f} since calibration "
+        return (f"camera: shift ({signed(self.shift_px[0], 2)}, {signed(self.shift_px[1], 2)}) px, rotation "
+                f"{signed(self.rotation_deg, 3)} deg, scale {self.scale:.4f} since calibration "
                 f"(residual {self.residual_px:.2f} px, {self.symbols_used} symbols, {self.model})")
+
+
+def signed(value: float, digits: int) -> str:
+    """``value`` with its sign and ``digits`` decimals, a value that rounds to zero as ``+0.00``
+    (not ``-0.00``: no movement has a direction).
+
+    Examples
+    --------
+    >>> signed(-0.0004, 2), signed(-0.25, 1), signed(1.5, 0)
+    ('+0.00', '-0.2', '+2')
+    """
+    return f"{round(float(value), digits) + 0.0:+.{digits}f}"
 
 
 def _distances(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -15,6 +15,7 @@ from textual.widgets import Button, DataTable, Header, Label, Static
 from ...detection import exports
 from ...detection.exports import overlay_image
 from ...detection.obstacles import axis_angle
+from ...detection.registration import signed
 from ...errors import CameraMotionError, InputError
 from ..session import display_path
 from ..widgets.busy import Busy
@@ -60,8 +61,8 @@ def camera_lines(motion) -> list[str]:
     if motion is None or motion.model == "none":
         return ["camera      movement not estimated"]
     lines = ["camera since calibration",
-             f"  shift     {motion.shift_px[0]:+.2f}, {motion.shift_px[1]:+.2f} px",
-             f"  rotation  {motion.rotation_deg:+.3f}°",
+             f"  shift     {signed(motion.shift_px[0], 2)}, {signed(motion.shift_px[1], 2)} px",
+             f"  rotation  {signed(motion.rotation_deg, 3)}°",
              f"  scale     {motion.scale:.4f}",
              f"  residual  {motion.residual_px:.2f} px, {motion.symbols_used} symbols ({motion.model})"]
     if motion.warning:

@@ -17,6 +17,7 @@ from textual.screen import Screen
 from textual.widgets import Button, Checkbox, DataTable, Footer, Header, Label, Log, Static
 from textual.worker import get_current_worker
 
+from ...detection.registration import signed
 from ...errors import InputError
 from ...live import Watcher, open_source, paced
 from ...live.overlay import live_overlay
@@ -257,7 +258,7 @@ class WatchScreen(Screen):
         elif cam is None or cam.model == "none":
             camera = "-"
         else:
-            camera = f"({cam.shift_px[0]:+.1f}, {cam.shift_px[1]:+.1f}) px {cam.rotation_deg:+.2f}°"
+            camera = f"({signed(cam.shift_px[0], 1)}, {signed(cam.shift_px[1], 1)}) px {signed(cam.rotation_deg, 2)}°"
         lat = stats["latency_ms"]
         hide = self.app.hide_timings
         fps = "···" if hide or stats["fps"] is None else f"{stats['fps']:.1f}"
