@@ -45,6 +45,7 @@ from sbplan.contracts import FootprintRefiner, StageChoices
 from sbplan.detection import Detector
 from sbplan.detection.calibration import DEFAULT_STAGES, calibrate
 from sbplan.detection.obstacles import OBSTACLE_MODELS, obstacles_from_outlines
+from sbplan.detection.registration import movement_at_centre
 from sbplan.errors import InputError, SbplanError
 from sbplan.imageio import write_image
 from sbplan.synth import CONDITIONS, FloorSpec
@@ -123,8 +124,13 @@ def _motion_error(camera: CameraMotion, truth: GroundTruth) -> tuple[float, floa
     """How far the movement a detection reported is from the renderer's: the largest error of
     the shift (pixels) and of the rotation (degrees)."""
     m = truth.params["camera"].get("motion") or {"shift_px": [0.0, 0.0], "rotation_deg": 0.0}
-    err_px = math.hypot(camera.shift_px[0] - m["shift_px"][0], camera.shift_px[1] - m["shift_px"][1])
-    return err_px, abs(camera.rotation_deg - m["rotation_deg"])
+    shift, rotation = m["shift_px"], m["rotation_deg"]
+    if "matrix" in m:
+        # the same quantity the detection reports: the true movement at the image's centre (a
+        # sagged camera's tilt shifts and turns the centre too, beyond the vibration's numbers)
+        shift, rotation, _ = movement_at_centre(np.asarray(m["matrix"]), (int(truth.params["floor"]["height"]), int(truth.params["floor"]["width"])))
+    err_px = math.hypot(camera.shift_px[0] - shift[0], camera.shift_px[1] - shift[1])
+    return err_px, abs(camera.rotation_deg - rotation)
 
 
 def _timed(fn: Callable[[np.ndarray], R], image: np.ndarray, repeat: int) -> tuple[R, list[float]]:

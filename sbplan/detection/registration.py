@@ -647,17 +647,32 @@ def _resolve_pitch(matrix: np.ndarray, ambiguous: list[tuple[int, int]], grid: "
     return candidates[best], False
 
 
-def _motion(matrix: np.ndarray, rms: float, used: int, model: str, image_shape, grid: "Grid | None", pitch: float,
-            ambiguous: bool) -> CameraMotion:
+def movement_at_centre(matrix: np.ndarray, image_shape: tuple[int, int]) -> tuple[tuple[float, float], float, float]:
+    """What a movement ``matrix`` (3x3, calibration -> frame pixels) does at the image's centre:
+    the centre's shift ``(dx, dy)`` (pixels), the rotation (degrees) and the scale of the local
+    linear part there. Exact for a similarity; for a homography (a camera that tilted), the
+    movement an operator sees in the middle of the picture.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> movement_at_centre(np.array([[1.0, 0, 2.5], [0, 1.0, -1.0], [0, 0, 1]]), (101, 201))
+    ((2.5, -1.0), 0.0, 1.0)
+    """
     h, w = int(image_shape[0]), int(image_shape[1])
     cx, cy = (w - 1) / 2.0, (h - 1) / 2.0
     # the centre and a pixel to its right and below it, moved: the local linear part at the centre
-    # (exact for a similarity)
-    (mx, my), (ax, ay), (bx, by) = apply(matrix, np.array([[cx, cy], [cx + 1.0, cy], [cx, cy + 1.0]])).tolist()
+    (mx, my), (ax, ay), (bx, by) = apply(np.asarray(matrix, np.float64),
+                                         np.array([[cx, cy], [cx + 1.0, cy], [cx, cy + 1.0]])).tolist()
     l00, l10, l01, l11 = ax - mx, ay - my, bx - mx, by - my
     rotation = math.degrees(math.atan2(l01 - l10, l00 + l11))
     scale = math.sqrt(abs(l00 * l11 - l01 * l10))
-    shift = (mx - cx, my - cy)
+    return (mx - cx, my - cy), rotation, scale
+
+
+def _motion(matrix: np.ndarray, rms: float, used: int, model: str, image_shape, grid: "Grid | None", pitch: float,
+            ambiguous: bool) -> CameraMotion:
+    shift, rotation, scale = movement_at_centre(matrix, image_shape)
     if grid is not None:
         ref = grid.centres_px.reshape(-1, 2)
         movement = float(_distances(apply(matrix, ref), ref).max())
