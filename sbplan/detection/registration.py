@@ -784,10 +784,10 @@ def grey_centres(gray: np.ndarray, boxes: np.ndarray, side: int) -> np.ndarray:
                            win[:, :, 0] - (middle - slope_x * d[-1])[:, None] - slope_y[:, None] * d,
                            win[:, :, -1] - (middle + slope_x * d[-1])[:, None] - slope_y[:, None] * d], axis=1)
     allowance = np.maximum(np.float32(3 * 1.2533) * np.abs(ring).mean(axis=1), np.float32(CENTRE_FLOOR_NOISE))
-    # the weights in place of the window's copy: how far below the plane less the allowance
-    level = np.add(((middle - allowance)[:, None] + slope_y[:, None] * d)[:, :, None],
-                   (slope_x[:, None] * d)[:, None, :])
-    wt = np.subtract(level, win, out=win)
+    # the weights in place of the window's copy: how far below the plane less the allowance (the
+    # plane's rows, then its columns, added in place: no window-sized plane is made)
+    wt = np.subtract(((middle - allowance)[:, None] + slope_y[:, None] * d)[:, :, None], win, out=win)
+    wt += (slope_x[:, None] * d)[:, None, :]
     np.maximum(wt, np.float32(0), out=wt)
     # ... each relative to the floor's level there: light multiplies, so under a gradient the
     # ink on the brighter side lies further below its floor and weighed more (a flat level:
