@@ -56,6 +56,8 @@ SCRATCH_BROKEN_SHARE = 0.25
 #: A Detector logs the camera-movement warning once while the movement lasts, and again after this
 #: many seconds.
 WARN_REPEAT_S = 60.0
+#: With symbols worked on reduced, a repaired symbol's allowances grow by this much (working pixels).
+REPAIR_MARGIN_WORK_PX = 0.5
 #: Symbols whose grey-level centres refine the registration (spread over the grid): 24 pin it to
 #: about 0.05 px on the renderer's scenes at half the cost of all 50.
 REGISTRATION_SYMBOLS = 24
@@ -619,8 +621,12 @@ class Detector:
                 _, shift = samples_deviation(xy[None, :, 0], xy[None, :, 1], self.distance_map)
                 return float(shift[0]) * motion.scale / f
 
+            # (the paint reaches the reference outline, which runs through the centres of the
+            # working image's boundary pixels: where a scratch crossed the edge, the repaired ink
+            # may end up to half a working pixel short of the edge the allowances were measured on)
             return ink_piece_hidden(ink, (u0, v0), work.to_work(points), inward,
-                                    self.allowance[cell] * motion.scale / f, common_shift=common_shift)
+                                    self.allowance[cell] * motion.scale / f + REPAIR_MARGIN_WORK_PX,
+                                    common_shift=common_shift)
         return hidden
 
     def _symbols(self, gray: np.ndarray, bands: RowBands | None, lap) -> tuple:
