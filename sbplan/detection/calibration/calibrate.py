@@ -351,17 +351,22 @@ def _symbol_members(shapes: Shapes, matcher, *, ref: np.ndarray | None) -> np.nd
 
 
 def _dominant_repeated_shape(shapes: Shapes, matcher) -> np.ndarray:
-    """The group of contours with the same shape and the same size that covers the most floor.
+    """The group of contours with the same shape and the same size that covers the most floor,
+    among the groups of at least four (what a grid needs; the largest group when none has four).
 
     By area, not count: a textured floor repeats its grain's specks too, and seen by a 4K camera
     through a lens that bends the symbols' outlines apart, 35 specks of 140 px2 outnumbered every
-    group of the symbols, 17000 px2 each (calibration failed on an "irregular grid")."""
+    group of the symbols, 17000 px2 each (calibration failed on an "irregular grid"). (Under a
+    tilted 4K camera only three symbols at a time are alike at the frame's resolution: the specks
+    then give the first size estimate, and the symbols are found in the working image.)"""
     d = distances_between(matcher, shapes.descriptors, shapes.descriptors)
     ratio = shapes.areas[:, None] / shapes.areas[None, :]
     same_size = np.abs(np.log(ratio)) < np.log(1.35)
     tight = 0.25 * getattr(matcher, "default_threshold", 0.5)
     alike = (d < tight) & same_size
-    seed = int(np.argmax(alike.astype(np.float64) @ np.asarray(shapes.areas, np.float64)))
+    count = alike.sum(axis=1)
+    cover = alike.astype(np.float64) @ np.asarray(shapes.areas, np.float64)
+    seed = int(np.argmax(np.where(count >= 4, cover, -1.0))) if (count >= 4).any() else int(np.argmax(count))
     members = np.flatnonzero(alike[seed])
     # widen once around the group's median so the seed's own noise does not decide membership
     median = np.median(shapes.descriptors[members], axis=0)
