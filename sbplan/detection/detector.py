@@ -14,7 +14,6 @@ import time
 from dataclasses import dataclass, fields, replace
 from typing import Any, Unpack
 
-import cv2
 import numpy as np
 
 from ..contracts import (Binarizer, ContourApproximator, ContourExtractor, DescriptorMatcher, FootprintRefiner,
@@ -607,7 +606,7 @@ class Detector:
             cu1, cv1 = min(ww, -(-(u1 + reach) // step) * step), min(wh, -(-(v1 + reach) // step) * step)
             canvas = gray[cv0 * f:cv1 * f, cu0 * f:cu1 * f].copy()
             canvas[y0 - cv0 * f:y0 - cv0 * f + h, x0 - cu0 * f:x0 - cu0 * f + w] = repaired
-            small = _reduced(canvas, f)
+            small = work.reduce_part(canvas)
             ink = call_stage(self.binarizer, "binarize", small, returns=_mask_of(small.shape))
             ink = np.asarray(ink)[v0 - cv0:v1 - cv0, u0 - cu0:u1 - cu0]
             corner = np.array([u0, v0], np.float64)
@@ -777,19 +776,6 @@ class Detector:
 #: A cell whose symbol the camera's movement put partly out of the frame is judged by the edge
 #: points in view when at least this share of them is (else it stays occupied: unseen is not free).
 IN_VIEW_SHARE = 0.5
-
-
-def _reduced(image: np.ndarray, factor: int) -> np.ndarray:
-    """A crop of the frame (its sides multiples of ``factor``, starting on a multiple of it) at the
-    working resolution, as :meth:`WorkScale.reduce` reduces the whole frame (area-averaging
-    halvings): the same pixels as the whole frame's reduction there."""
-    f = factor
-    while f > 1 and f % 2 == 0:
-        image = cv2.resize(image, (image.shape[1] // 2, image.shape[0] // 2), interpolation=cv2.INTER_AREA)
-        f //= 2
-    if f > 1:
-        image = cv2.resize(image, (image.shape[1] // f, image.shape[0] // f), interpolation=cv2.INTER_AREA)
-    return image
 
 
 def _out_of_view(x: np.ndarray, y: np.ndarray, shape: tuple[int, int]) -> np.ndarray | None:

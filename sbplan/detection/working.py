@@ -59,13 +59,22 @@ class WorkScale:
         """The frame at the working resolution (area averaging)."""
         if self.identity:
             return gray
-        f, h, w = self.factor, gray.shape[0], gray.shape[1]
-        while f > 1 and f % 2 == 0 and h % 2 == 0 and w % 2 == 0:
-            h, w, f = h // 2, w // 2, f // 2
-            gray = cv2.resize(gray, (w, h), interpolation=cv2.INTER_AREA)
+        gray = self.reduce_part(gray)
         if gray.shape != self.work_shape:
             gray = cv2.resize(gray, (self.work_shape[1], self.work_shape[0]), interpolation=cv2.INTER_AREA)
         return gray
+
+    def reduce_part(self, part: np.ndarray) -> np.ndarray:
+        """A part of the frame made ``factor`` times smaller by the halvings :meth:`reduce` uses:
+        for a part whose corner and sides are multiples of the factor, exactly the whole frame's
+        working pixels there."""
+        f, h, w = self.factor, part.shape[0], part.shape[1]
+        while f > 1 and f % 2 == 0 and h % 2 == 0 and w % 2 == 0:
+            h, w, f = h // 2, w // 2, f // 2
+            part = cv2.resize(part, (w, h), interpolation=cv2.INTER_AREA)
+        if f > 1:
+            part = cv2.resize(part, (max(1, w // f), max(1, h // f)), interpolation=cv2.INTER_AREA)
+        return part
 
     def to_frame(self, xy: np.ndarray) -> np.ndarray:
         """Working pixels ``(..., 2)`` ``(x, y)`` -> frame pixels."""
