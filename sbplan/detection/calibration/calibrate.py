@@ -158,7 +158,13 @@ def calibrate(reference: ImageInput, *, symbol: ImageInput | None = None,
     matcher_stage = cast(DescriptorMatcher, chosen["matcher"])  # the registry made it for the kind "matcher"
     extractor_stage, approximator_stage = chosen["extractor"], chosen["approximator"]
     step("extracting contours", 0.02)
+    # The first look, before the symbols' size is known, is at about the resolution the default
+    # stages are made for (frames over FIRST_LOOK_PX wide halved, as often as it takes): at 4K
+    # their local window is a quarter of a symbol, a tilted camera's symbols came out too unlike
+    # to be found as a group, and the floor's grain was taken for the symbol.
+    first = WorkScale(_first_look_factor(gray.shape), gray.shape)
     shapes = extract_shapes(gray, binarizer=chosen["binarizer"], points_range=points_range,
+                            work=None if first.identity else first,
                             extractor=extractor_stage, approximator=approximator_stage, matcher=matcher_stage)
     given = None if symbol is None else _symbol_descriptor_from_image(
         symbol, extractor=chosen["extractor"], approximator=chosen["approximator"], matcher=chosen["matcher"])
@@ -326,6 +332,19 @@ def _degraded_symbols(gray: np.ndarray, grid: Grid, descriptor: np.ndarray, cell
         return np.zeros(0), np.zeros(0), [], np.zeros(0, np.int64), np.zeros(0)
     return (np.concatenate(distances), np.concatenate(deviations), polygons, np.concatenate(cells_kept),
             np.concatenate(shifts))
+
+
+#: Calibration's first look at a reference wider than this is at a halved resolution (or smaller).
+FIRST_LOOK_PX = 2048
+
+
+def _first_look_factor(shape: tuple[int, int]) -> int:
+    """The power of two that brings a reference's width (and height, as wide) to FIRST_LOOK_PX or
+    less."""
+    factor, side = 1, max(int(shape[0]), int(shape[1]))
+    while side / factor > FIRST_LOOK_PX:
+        factor *= 2
+    return factor
 
 
 def _symbol_members(shapes: Shapes, matcher, *, ref: np.ndarray | None) -> np.ndarray:
