@@ -705,8 +705,11 @@ def _motion(matrix: np.ndarray, rms: float, used: int, model: str, image_shape, 
 #: (a defocused symbol's edge reaches 3 px into its floor: its window's border must be floor;
 #: with 3, the suite's blur moved the registration by 0.17-0.20 px, with 5 by 0.08).
 CENTRE_MARGIN_PX = 5
-#: Grey levels below the floor's at which ink starts to weigh (keeps floor grain out of the centre).
-CENTRE_FLOOR_NOISE = 10.0
+#: How far below the floor's level, as a share of it, ink starts to weigh at the least (keeps the
+#: floor's grain out of the centre): 10 grey levels on a floor of 200. A share, not grey levels:
+#: under the suite's low light (a floor near 50) a fixed 10 kept the ink's blurred rim out and moved
+#: a 4K frame's registration by 0.2 px (now 0.06).
+CENTRE_FLOOR_SHARE = 0.05
 
 
 def centre_window(polygons) -> int:
@@ -728,10 +731,10 @@ def grey_centres(gray: np.ndarray, boxes: np.ndarray, side: int) -> np.ndarray:
     """Sub-pixel centres of dark symbols: the centre of darkness inside each box.
 
     A square of ``side`` pixels (:func:`centre_window`) centred on each box is read from the grey image;
-    the floor's level is a plane through the medians of the square's four sides, and every pixel
+    the floor's level is a plane through the means of the square's four sides, and every pixel
     weighs by how much darker than the plane it is, less an allowance for the floor's grain (three
-    robust deviations of the border from the plane, at least :data:`CENTRE_FLOOR_NOISE`), relative
-    to the plane (light multiplies). Antialiased edges weigh in part, so the
+    standard deviations of the border about the plane, at least :data:`CENTRE_FLOOR_SHARE` of the
+    floor's level), relative to the plane (light multiplies). Antialiased edges weigh in part, so the
     centre follows sub-pixel movements that the binary outline's pixels cannot show (a polygon's
     centre of area errs by 0.1 to 0.3 px, the same way on every symbol of a regular grid; this by
     about 0.05 px). All boxes are read at one size, in one gather.
@@ -778,12 +781,12 @@ def grey_centres(gray: np.ndarray, boxes: np.ndarray, side: int) -> np.ndarray:
     # everywhere in the window, which pulls the centre towards the window's middle, the same way
     # on every symbol (a whole frame's movement off by 0.21 px at 1920x1080 under the suite's
     # noise). The allowance is three of the ring's robust deviations from the plane, at least
-    # CENTRE_FLOOR_NOISE (three standard deviations, from the mean absolute one).
+    # CENTRE_FLOOR_SHARE of the floor's level (three standard deviations, from the mean absolute one).
     ring = np.concatenate([win[:, 0, :] - (middle - slope_y * d[-1])[:, None] - slope_x[:, None] * d,
                            win[:, -1, :] - (middle + slope_y * d[-1])[:, None] - slope_x[:, None] * d,
                            win[:, :, 0] - (middle - slope_x * d[-1])[:, None] - slope_y[:, None] * d,
                            win[:, :, -1] - (middle + slope_x * d[-1])[:, None] - slope_y[:, None] * d], axis=1)
-    allowance = np.maximum(np.float32(3 * 1.2533) * np.abs(ring).mean(axis=1), np.float32(CENTRE_FLOOR_NOISE))
+    allowance = np.maximum(np.float32(3 * 1.2533) * np.abs(ring).mean(axis=1), np.float32(CENTRE_FLOOR_SHARE) * middle)
     # the weights in place of the window's copy: how far below the plane less the allowance (the
     # plane's rows, then its columns, added in place: no window-sized plane is made)
     wt = np.subtract(((middle - allowance)[:, None] + slope_y[:, None] * d)[:, :, None], win, out=win)
