@@ -181,7 +181,8 @@ def calibrate(reference: ImageInput, *, symbol: ImageInput | None = None,
         points_range = (12, max(16, sum(work.work_shape) // 2))
     fit = getattr(chosen["binarizer"], "with_symbol_size", None)
     refit = fit(size * SYMBOL_WINDOW / work.factor) if fit is not None else chosen["binarizer"]
-    if refit != chosen["binarizer"] or not work.identity:
+    # (a first look at a reduced resolution is no final outline either)
+    if refit != chosen["binarizer"] or not work.identity or work.factor != first.factor:
         step("extracting contours at the symbol's size", 0.15)
         chosen["binarizer"] = refit
         shapes = extract_shapes(gray, binarizer=refit, points_range=points_range, work=work_arg,
@@ -375,9 +376,7 @@ def _dominant_repeated_shape(shapes: Shapes, matcher) -> np.ndarray:
 
     By area, not count: a textured floor repeats its grain's specks too, and seen by a 4K camera
     through a lens that bends the symbols' outlines apart, 35 specks of 140 px2 outnumbered every
-    group of the symbols, 17000 px2 each (calibration failed on an "irregular grid"). (Under a
-    tilted 4K camera only three symbols at a time are alike at the frame's resolution: the specks
-    then give the first size estimate, and the symbols are found in the working image.)"""
+    group of the symbols, 17000 px2 each (calibration failed on an "irregular grid")."""
     d = distances_between(matcher, shapes.descriptors, shapes.descriptors)
     ratio = shapes.areas[:, None] / shapes.areas[None, :]
     same_size = np.abs(np.log(ratio)) < np.log(1.35)
