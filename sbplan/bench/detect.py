@@ -128,7 +128,8 @@ def _motion_error(camera: CameraMotion, truth: GroundTruth) -> tuple[float, floa
     if "matrix" in m:
         # the same quantity the detection reports: the true movement at the image's centre (a
         # sagged camera's tilt shifts and turns the centre too, beyond the vibration's numbers)
-        shift, rotation, _ = movement_at_centre(np.asarray(m["matrix"]), (int(truth.params["floor"]["height"]), int(truth.params["floor"]["width"])))
+        floor = truth.params["floor"]
+        shift, rotation, _ = movement_at_centre(np.asarray(m["matrix"]), (int(floor["height"]), int(floor["width"])))
     err_px = math.hypot(camera.shift_px[0] - shift[0], camera.shift_px[1] - shift[1])
     return err_px, abs(camera.rotation_deg - rotation)
 

@@ -776,12 +776,13 @@ def grey_centres(gray: np.ndarray, boxes: np.ndarray, side: int) -> np.ndarray:
     middle = (top + bottom + left + right) * np.float32(0.25)
     across = np.float32(1 / (side - 1))
     slope_x, slope_y = (right - left) * across, (bottom - top) * across
-    d = np.arange(side, dtype=np.float32) - np.float32((side - 1) / 2)
+    powers = _powers(side)  # (side, 3): 1, d, d^2 for each offset d from the window's middle
+    d = powers[:, 1]
     # Sensor noise takes floor pixels below a fixed allowance here and there: they weigh a little
     # everywhere in the window, which pulls the centre towards the window's middle, the same way
     # on every symbol (a whole frame's movement off by 0.21 px at 1920x1080 under the suite's
-    # noise). The allowance is three of the ring's robust deviations from the plane, at least
-    # CENTRE_FLOOR_SHARE of the floor's level (three standard deviations, from the mean absolute one).
+    # noise). The allowance is three standard deviations of the ring about the plane (from its
+    # mean absolute deviation), at least CENTRE_FLOOR_SHARE of the floor's level.
     ring = np.concatenate([win[:, 0, :] - (middle - slope_y * d[-1])[:, None] - slope_x[:, None] * d,
                            win[:, -1, :] - (middle + slope_y * d[-1])[:, None] - slope_x[:, None] * d,
                            win[:, :, 0] - (middle - slope_x * d[-1])[:, None] - slope_y[:, None] * d,
@@ -797,11 +798,11 @@ def grey_centres(gray: np.ndarray, boxes: np.ndarray, side: int) -> np.ndarray:
     # 0.18 px off at 1920x1080 on the suite's gradient; a plane without this: 0.34). With
     # e = (slope . d) / middle, a few hundredths, 1 / plane = (1 - e) / middle to first order:
     # the relative moments follow from the plain ones up to the second.
-    rows_of = wt.reshape(n * side, side)
-    per_row = (rows_of @ _powers(side)).reshape(n, side, 3)  # per row: sum w, sum w dx, sum w dx^2
-    s0, sx, sxx = per_row[..., 0] @ np.ones(side, np.float32), per_row[..., 1] @ np.ones(side, np.float32), \
-        per_row[..., 2] @ np.ones(side, np.float32)
-    sy, sxy, syy = per_row[..., 0] @ d, per_row[..., 1] @ d, per_row[..., 0] @ (d * d)
+    # every moment up to the second in two matrix products: over each row's columns, then over
+    # the rows (numpy's axis sums over a 3-D array cost several times more)
+    per_row = (wt.reshape(n * side, side) @ powers).reshape(n, side, 3)  # sum w, w dx, w dx^2
+    m = per_row.transpose(0, 2, 1) @ powers  # (n, 3, 3): [x power, y power]
+    s0, sy, syy, sx, sxy, sxx = m[:, 0, 0], m[:, 0, 1], m[:, 0, 2], m[:, 1, 0], m[:, 1, 1], m[:, 2, 0]
     gx, gy = slope_x / middle, slope_y / middle
     total = s0 - gx * sx - gy * sy
     mx = sx - gx * sxx - gy * sxy
