@@ -43,6 +43,7 @@ from typing import TYPE_CHECKING, Any
 
 import cv2
 import numpy as np
+from numpy.lib.stride_tricks import as_strided
 
 from ..errors import CameraMotionError
 from ..polygons import apply_homography as apply
@@ -763,16 +764,16 @@ def grey_centres(gray: np.ndarray, boxes: np.ndarray, side: int) -> np.ndarray:
         return out
     xs, ys = x0[inside], y0[inside]
     n = len(xs)
-    # each window's rows copied by a slice (a gather through a strided view costs twice as much),
-    # straight into the float32 array the weights are computed in
-    win = np.empty((n, side, side), np.float32)
-    for i, (x, y) in enumerate(zip(xs.tolist(), ys.tolist())):
-        win[i] = gray[y:y + side, x:x + side]
+    # every window in one gather, through a view of the image as all its side x side squares (a
+    # loop of slice copies costs three times as much), then one conversion to the float32 the
+    # weights are computed in
+    squares = as_strided(gray, (h - side + 1, w - side + 1, side, side), gray.strides * 2, writeable=False)
+    win = squares[ys, xs].astype(np.float32)
     # The floor's level across each window: a plane through its border ring (the suite's
     # lighting gradient changes it by several grey levels across a symbol), from each side's
-    # mean.
-    sides = np.concatenate([win[:, 0, :], win[:, -1, :], win[:, :, 0], win[:, :, -1]]).mean(axis=1)
-    top, bottom, left, right = sides.reshape(4, n)
+    # mean (the ring is read once: its top, bottom, left and right sides, each (n, side)).
+    ring = np.stack([win[:, 0, :], win[:, -1, :], win[:, :, 0], win[:, :, -1]])
+    top, bottom, left, right = ring.mean(axis=2)
     middle = (top + bottom + left + right) * np.float32(0.25)
     across = np.float32(1 / (side - 1))
     slope_x, slope_y = (right - left) * across, (bottom - top) * across
@@ -783,16 +784,21 @@ def grey_centres(gray: np.ndarray, boxes: np.ndarray, side: int) -> np.ndarray:
     # on every symbol (a whole frame's movement off by 0.21 px at 1920x1080 under the suite's
     # noise). The allowance is three standard deviations of the ring about the plane (from its
     # mean absolute deviation), at least CENTRE_FLOOR_SHARE of the floor's level.
-    ring = np.concatenate([win[:, 0, :] - (middle - slope_y * d[-1])[:, None] - slope_x[:, None] * d,
-                           win[:, -1, :] - (middle + slope_y * d[-1])[:, None] - slope_x[:, None] * d,
-                           win[:, :, 0] - (middle - slope_x * d[-1])[:, None] - slope_y[:, None] * d,
-                           win[:, :, -1] - (middle + slope_x * d[-1])[:, None] - slope_y[:, None] * d], axis=1)
-    allowance = np.maximum(np.float32(3 * 1.2533) * np.abs(ring).mean(axis=1), np.float32(CENTRE_FLOOR_SHARE) * middle)
+    half = d[-1]
+    # the plane along each side: its level at the side's middle, and its slope along the side
+    at = np.stack([middle - slope_y * half, middle + slope_y * half, middle - slope_x * half, middle + slope_x * half])
+    along = np.stack([slope_x, slope_x, slope_y, slope_y])
+    ring -= at[:, :, None] + along[:, :, None] * d
+    deviation = np.abs(ring).mean(axis=(0, 2))
+    allowance = np.maximum(np.float32(3 * 1.2533) * deviation, np.float32(CENTRE_FLOOR_SHARE) * middle)
     # the weights in place of the window's copy: how far below the plane less the allowance (the
-    # plane's rows, then its columns, added in place: no window-sized plane is made)
-    wt = np.subtract(((middle - allowance)[:, None] + slope_y[:, None] * d)[:, :, None], win, out=win)
-    wt += (slope_x[:, None] * d)[:, None, :]
-    np.maximum(wt, np.float32(0), out=wt)
+    # window less the plane's column term, taken from its row term, in place: no window-sized
+    # plane is made)
+    wt = np.subtract(win, (slope_x[:, None] * d)[:, None, :], out=win)
+    np.subtract(((middle - allowance)[:, None] + slope_y[:, None] * d)[:, :, None], wt, out=wt)
+    # (OpenCV's clamp at zero in place costs a seventh of numpy's maximum)
+    flat = wt.reshape(n * side, side)
+    cv2.threshold(flat, 0, 0, cv2.THRESH_TOZERO, dst=flat)
     # ... each relative to the floor's level there: light multiplies, so under a gradient the
     # ink on the brighter side lies further below its floor and weighed more (a flat level:
     # 0.18 px off at 1920x1080 on the suite's gradient; a plane without this: 0.34). With
@@ -800,7 +806,7 @@ def grey_centres(gray: np.ndarray, boxes: np.ndarray, side: int) -> np.ndarray:
     # the relative moments follow from the plain ones up to the second.
     # every moment up to the second in two matrix products: over each row's columns, then over
     # the rows (numpy's axis sums over a 3-D array cost several times more)
-    per_row = (wt.reshape(n * side, side) @ powers).reshape(n, side, 3)  # sum w, w dx, w dx^2
+    per_row = (flat @ powers).reshape(n, side, 3)  # sum w, w dx, w dx^2
     m = per_row.transpose(0, 2, 1) @ powers  # (n, 3, 3): [x power, y power]
     s0, sy, syy, sx, sxy, sxx = m[:, 0, 0], m[:, 0, 1], m[:, 0, 2], m[:, 1, 0], m[:, 1, 1], m[:, 2, 0]
     gx, gy = slope_x / middle, slope_y / middle
