@@ -45,9 +45,10 @@ BANDS_WORTH_IT = 0.8
 #: Rows a registered symbol must keep from its band's edges; closer, the frame is done again with
 #: bands laid out for the registered pose (a camera that moved more than the margin since the last frame).
 BAND_SPARE_PX = 2.0
-#: Cells called occupied whose scratches are looked for in one frame, at most (wear is a few
-#: symbols here and there; a frame with more broken symbols has obstacles, not wear).
-SCRATCH_CELLS = 24
+#: Cells called occupied whose scratches are looked for in one frame, at most, as a share of the
+#: grid's cells (a frame with more broken symbols has obstacles, not wear). A share, not a count:
+#: a fixed 24 let wear break more symbols than that on a 16 x 12 grid, and none was repaired.
+SCRATCH_SHARE = 0.5
 #: Cells whose edge is broken at more than this share of its points are not looked at for scratches
 #: (on the suite's worn floors scratched symbols broke at most 11 % of their points; 90 % of the
 #: occupied cells whose edge broke, more than 15 %).
@@ -518,7 +519,7 @@ class Detector:
             last.plain[missing] = kept.all(axis=1) & whole
         broken = np.flatnonzero(last.broken)
         rescued = last.intact
-        if 0 < len(broken) <= SCRATCH_CELLS:
+        if 0 < len(broken) <= SCRATCH_SHARE * len(last.found):
             # (a cell's repair reads its own window only: one kept from the last frame stands)
             need = broken[last.repaired[broken] < 0]
             if len(need):
