@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from sbplan.errors import CalibrationError
-from sbplan.detection.grid import fit_grid
+from sbplan.detection.grid import fit_grid, lattice_gaps
 
 PAPER_X = [47, 146, 247, 346, 445, 544, 644, 744]
 PAPER_Y = [45, 138, 229, 322, 413, 506]
@@ -51,3 +51,11 @@ def test_irregular_grids_are_refused_with_the_cell_named():
         fit_grid(np.zeros((0, 2)))
     with pytest.raises(CalibrationError, match="at least 4"):
         fit_grid(pts[:3])
+
+
+def test_lattice_gaps_are_the_empty_positions_inside_the_lattice():
+    pts = np.array([(x, y) for y in PAPER_Y for x in PAPER_X], np.float64)
+    assert lattice_gaps(pts).shape == (0, 2)
+    gaps = lattice_gaps(np.delete(pts, [2 * 8 + 3, 5 * 8 + 7], axis=0))
+    assert sorted(np.rint(gaps).astype(int).tolist()) == [[346, 229], [744, 506]]
+    assert lattice_gaps(pts[:3]).shape == (0, 2)  # no lattice to speak of

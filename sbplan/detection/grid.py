@@ -148,6 +148,56 @@ def fit_grid(centres: np.ndarray, *, tolerance: float = 0.3, max_residual: float
         Fewer than 4 centres, no lattice structure, a missing or doubled symbol, or a centre far
         off the lattice.
     """
+    pts, idx, cols, rows, homography, pitch = _lattice(centres)
+    flat = idx[:, 1] * cols + idx[:, 0]
+    counts = np.bincount(flat, minlength=rows * cols)
+    if (counts > 1).any():
+        bad = [(int(k // cols), int(k % cols)) for k in np.flatnonzero(counts > 1)[:5]]
+        raise CalibrationError(f"irregular grid: more than one symbol in cell(s) (row, col) {bad}")
+    if (counts == 0).any():
+        missing = [(int(k // cols), int(k % cols)) for k in np.flatnonzero(counts == 0)[:5]]
+        more = "" if (counts == 0).sum() <= 5 else f" and {(counts == 0).sum() - 5} more"
+        raise CalibrationError(
+            f"irregular grid: a lattice of {size_text(cols, rows)} with no symbol at (row, col) {missing}{more}; "
+            "the reference image must show every symbol of a complete grid")
+    centres_px = np.empty((rows, cols, 2))
+    centres_px[idx[:, 1], idx[:, 0]] = pts
+    homography = _fit_homography(idx, pts)
+    fitted = cv2.perspectiveTransform(idx.reshape(-1, 1, 2).astype(np.float64), homography).reshape(-1, 2)
+    residual = np.linalg.norm(fitted - pts, axis=1)
+    if residual.max() > max_residual * pitch:
+        k = int(np.argmax(residual))
+        raise CalibrationError(
+            f"irregular grid: the symbol at (row, col) ({idx[k, 1]}, {idx[k, 0]}) is {residual[k]:.1f} px off the "
+            f"fitted lattice (allowed {max_residual * pitch:.1f} px)")
+    return Grid(rows, cols, centres_px, homography, float(tolerance * pitch))
+
+
+def lattice_gaps(centres: np.ndarray) -> np.ndarray:
+    """Where the lattice that ``centres`` (N, 2, pixels ``(x, y)``) lie on has a position without
+    one, inside the lattice's extent: shape (k, 2), pixels ``(x, y)`` (from the lattice's
+    homography), empty when there is no such position or no lattice.
+
+    Calibration looks there for a symbol its first grouping left out (a lens that bends the
+    corner symbols more than the others) before :func:`fit_grid` calls the grid irregular.
+    """
+    try:
+        _, idx, cols, rows, homography, _ = _lattice(centres)
+    except CalibrationError:
+        return np.zeros((0, 2))
+    taken = np.zeros((rows, cols), bool)
+    taken[idx[:, 1], idx[:, 0]] = True
+    row, col = np.nonzero(~taken)
+    if not len(row):
+        return np.zeros((0, 2))
+    at = np.column_stack([col, row]).astype(np.float64).reshape(-1, 1, 2)
+    return cv2.perspectiveTransform(at, homography).reshape(-1, 2)
+
+
+def _lattice(centres: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, int, np.ndarray, float]:
+    """The lattice the centres (N, 2) lie on: the centres, each one's lattice index ``(col, row)``
+    (N, 2) int64, the lattice's columns and rows, the homography from lattice indices to pixels
+    and the smaller pitch. Raises CalibrationError as :func:`fit_grid`."""
     pts = np.asarray(centres, dtype=np.float64).reshape(-1, 2)
     n = len(pts)
     if n == 0:
@@ -205,30 +255,8 @@ def fit_grid(centres: np.ndarray, *, tolerance: float = 0.3, max_residual: float
     idx -= idx.min(axis=0)
     idx = idx.astype(np.int64)
     cols, rows = int(idx[:, 0].max()) + 1, int(idx[:, 1].max()) + 1
-    flat = idx[:, 1] * cols + idx[:, 0]
-    counts = np.bincount(flat, minlength=rows * cols)
     pitch = min(np.linalg.norm(u), np.linalg.norm(w))
-    if (counts > 1).any():
-        bad = [(int(k // cols), int(k % cols)) for k in np.flatnonzero(counts > 1)[:5]]
-        raise CalibrationError(f"irregular grid: more than one symbol in cell(s) (row, col) {bad}")
-    if (counts == 0).any():
-        missing = [(int(k // cols), int(k % cols)) for k in np.flatnonzero(counts == 0)[:5]]
-        more = "" if (counts == 0).sum() <= 5 else f" and {(counts == 0).sum() - 5} more"
-        raise CalibrationError(
-            f"irregular grid: a lattice of {size_text(cols, rows)} with no symbol at (row, col) {missing}{more}; "
-            "the reference image must show every symbol of a complete grid")
-    centres_px = np.empty((rows, cols, 2))
-    centres_px[idx[:, 1], idx[:, 0]] = pts
-    homography = _fit_homography(idx, pts)
-    fitted = cv2.perspectiveTransform(idx.reshape(-1, 1, 2).astype(np.float64), homography).reshape(-1, 2)
-    residual = np.linalg.norm(fitted - pts, axis=1)
-    if residual.max() > max_residual * pitch:
-        k = int(np.argmax(residual))
-        raise CalibrationError(
-            f"irregular grid: the symbol at (row, col) ({idx[k, 1]}, {idx[k, 0]}) is {residual[k]:.1f} px off the "
-            f"fitted lattice (allowed {max_residual * pitch:.1f} px)")
-    return Grid(rows, cols, centres_px, homography, float(tolerance * pitch))
-
+    return pts, idx, cols, rows, homography, float(pitch)
 
 def _affine_homography(idx: np.ndarray, pts: np.ndarray) -> np.ndarray:
     a = np.column_stack([idx, np.ones(len(idx))])

@@ -24,7 +24,7 @@ from ...contracts import (Binarizer, ContourApproximator, ContourExtractor, Desc
 from ...errors import CalibrationError, InputError
 from ...imageio import ImageInput, as_gray, load_image
 from ...workspace import MAX_METRES, Workspace, load_workspace
-from ..grid import Grid, fit_grid
+from ..grid import Grid, fit_grid, lattice_gaps
 from ..outline_checks import (EDGE_DEPTH_PX, edge_contrast, edge_probes, inner_deviations, inner_tolerance,
                               outline_deviation, reference_samples, signed_distance_map)
 from ..registration import CameraMotion, centre_window, grey_centres, thumbnail
@@ -169,7 +169,7 @@ def calibrate(reference: ImageInput, *, symbol: ImageInput | None = None,
     given = None if symbol is None else _symbol_descriptor_from_image(
         symbol, extractor=chosen["extractor"], approximator=chosen["approximator"], matcher=chosen["matcher"])
     step("finding the symbol", 0.1)
-    members = _symbol_members(shapes, chosen["matcher"], ref=given)
+    members = _completed(shapes, _symbol_members(shapes, chosen["matcher"], ref=given), chosen["matcher"])
     # Fit the binarizer to the symbol size found and run again: a window of a few symbol sizes
     # follows the light without swallowing the symbol itself.
     # Symbols far larger than the outline checks need are worked on in a reduced image
@@ -187,7 +187,7 @@ def calibrate(reference: ImageInput, *, symbol: ImageInput | None = None,
         chosen["binarizer"] = refit
         shapes = extract_shapes(gray, binarizer=refit, points_range=points_range, work=work_arg,
                                 extractor=extractor_stage, approximator=approximator_stage, matcher=matcher_stage)
-        members = _symbol_members(shapes, chosen["matcher"], ref=given)
+        members = _completed(shapes, _symbol_members(shapes, chosen["matcher"], ref=given), chosen["matcher"])
     reference_descriptor = np.median(shapes.descriptors[members], axis=0)
     dist = distances_between(matcher_stage, shapes.descriptors, reference_descriptor[None, :])[:, 0]
     step("fitting the grid", 0.25)
@@ -368,6 +368,32 @@ def _symbol_members(shapes: Shapes, matcher, *, ref: np.ndarray | None) -> np.nd
         raise CalibrationError(
             f"no symbol grid found in the reference image: the most repeated shape occurs {len(members)} time(s)")
     return members
+
+
+def _completed(shapes: Shapes, members: np.ndarray, matcher) -> np.ndarray:
+    """``members`` and, at each position of their lattice that none of them holds, the shape of
+    the symbol's size nearest to it, when one lies within half a symbol of it and is like the
+    symbol by the matcher's own threshold.
+
+    The grouping keeps shapes close to the group's median, and a lens bends the symbols at the
+    frame's corners more than the rest: two of 50 such symbols (1024 x 768, barrel distortion)
+    fell outside it and the grid was called irregular. The lattice says where a symbol must be;
+    there a looser likeness is enough."""
+    gaps = lattice_gaps(shapes.centres[members])
+    if not len(gaps):
+        return members
+    median = np.median(shapes.descriptors[members], axis=0)
+    dm = distances_between(matcher, shapes.descriptors, median[None, :])[:, 0]
+    area = float(np.median(shapes.areas[members]))
+    candidate = (dm < getattr(matcher, "default_threshold", 0.5)) & (np.abs(np.log(shapes.areas / area)) < np.log(1.35))
+    candidate[members] = False
+    found = np.flatnonzero(candidate)
+    if not len(found):
+        return members
+    reach = 0.5 * np.sqrt(area)
+    gap_of = np.linalg.norm(shapes.centres[found][:, None, :] - gaps[None, :, :], axis=2)  # (candidates, gaps)
+    added = {int(found[np.argmin(gap_of[:, g])]) for g in range(len(gaps)) if gap_of[:, g].min() <= reach}
+    return np.union1d(members, np.fromiter(added, np.int64, len(added))) if added else members
 
 
 def _dominant_repeated_shape(shapes: Shapes, matcher) -> np.ndarray:
