@@ -430,6 +430,9 @@ SCRATCH_DEPTH_PX = 4
 SCRATCH_LEVEL = 0.3
 
 
+_SQUARE_3 = np.ones((3, 3), np.uint8)
+
+
 def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarray, y: np.ndarray,
                        factors: np.ndarray, *, max_break: int | np.ndarray = 0,
                        gap: int | np.ndarray = 3,
@@ -487,11 +490,19 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
         thin = (cv2.subtract(patch, opened) > SCRATCH_LEVEL * step).astype(np.uint8)
         inside = np.zeros_like(thin)
         cv2.fillPoly(inside, [np.rint((outline - (x0, y0)) * 16).astype(np.int32)], 1, cv2.LINE_8, shift=4)
+        inside &= 1 - _holes(opened, inside, float(median(v[0])) + step / 2)
         core = cv2.erode(inside, deep)
         if not ((core > 0) & (thin > 0)).any():
             continue
+        # The floor in the symbol's own acute notches is a thin bright feature too (the opening
+        # takes it), and where a scratch passes by one it joined the scratch's line and bent it:
+        # the symbol's own thin floor, from its outline, is no scratch's line. (grown by a pixel:
+        # the polygon cuts the notch's tip; it stays among the thin features whose sides must be
+        # ink)
+        floor = 1 - inside
+        own = cv2.dilate(floor - cv2.morphologyEx(floor, cv2.MORPH_OPEN, square), _SQUARE_3)
         # (the lines the test judges are the ones painted below: worked out once)
-        lines = _scratch_lines(thin, core)
+        lines = _scratch_lines(thin & (1 - own), core)
         if not _scratch_like(patch, thin, inside, v, step, lines & inside):
             continue
         # The symbol is scratched: the thin bright lines that reach its interior are taken for
@@ -507,7 +518,6 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
         thin = lines & ~_foreign_pieces(patch, thin, inside, v, step)
         scratch = cv2.dilate(thin, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))) > 0
         repaired = patch.copy()
-        repaired[scratch] = opened[scratch]
         # (inside the outline, within a scratch's width of the line, what reads brighter than
         # half the step is the ink between the scratch and the edge, lost in the blur)
         # A straight scratch that runs out along the edge leaves no thin line there (it merges with
@@ -647,7 +657,14 @@ def _scratch_like(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, level
     n, labels, stats, _ = components(over.astype(np.uint8))
     # (a few pixels left where the line grazes the outline's antialiased edge are no line of their own)
     lines = stats[1:][stats[1:, cv2.CC_STAT_AREA] >= SCRATCH_SPECK_PX]
-    if not 1 <= len(lines) <= SCRATCH_MAX_LINES:
+    if not len(lines):
+        return False
+    pieces = np.isin(labels, np.flatnonzero(np.r_[0, stats[1:, cv2.CC_STAT_AREA]] >= SCRATCH_SPECK_PX))
+    crossing = _stroke_crossings(labels, stats, inside)
+    # (one straight scratch across a symbol of several strokes, a Z or a comb, leaves a piece in
+    # each stroke, from edge to edge: such pieces along one straight course are one line; a
+    # striped object's stripes in line with a scratch end inside the ink)
+    if len(lines) > SCRATCH_MAX_LINES and not (crossing.all() and _straight_length(pieces) > 0):
         return False
     # A scratch that runs on along the edge shows a short line inside the ink only, and one that
     # passes close to the edge is left in pieces: short lines must lie along one straight course
@@ -656,9 +673,9 @@ def _scratch_like(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, level
     # line is the edge probes' to see once the line alone is painted over (_scratch_lines).
     need = SCRATCH_MIN_LENGTH * np.sqrt(area)
     longest = float(np.hypot(lines[:, cv2.CC_STAT_WIDTH], lines[:, cv2.CC_STAT_HEIGHT]).max())
-    in_pieces = longest < need
+    # (a line from edge to edge across a narrow stroke of the symbol is whole, however short)
+    in_pieces = longest < need and not crossing.any()
     if in_pieces:
-        pieces = np.isin(labels, np.flatnonzero(np.r_[0, stats[1:, cv2.CC_STAT_AREA]] >= SCRATCH_SPECK_PX))
         if _straight_length(pieces) < SCRATCH_COURSE_PX:
             return False
     # the lines are floor-coloured (pieces in a row, which an obstacle's edge can make, closer to
@@ -675,6 +692,46 @@ def _scratch_like(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, level
     around = patch[beside].astype(np.float32)
     return (float(median(around)) <= ink + SCRATCH_INK_LEVEL * step
             and percentile(around, 90) <= ink + 2 * SCRATCH_INK_LEVEL * step)
+
+
+def _holes(opened: np.ndarray, inside: np.ndarray, level: float) -> np.ndarray:
+    """The symbol's holes (a P's counter, a ring's middle) in a window: what lies inside its
+    outline (``inside``, 0/1 uint8; the outline is the outer one only) and reads brighter than
+    ``level`` (halfway from its ink to its floor) in the grey opening ``opened`` (the thin
+    scratches gone), in regions that do not reach the outline (an object over the symbol comes
+    from outside it). 0/1 uint8. The ink beside a scratch is not read there, nor painted."""
+    bright = ((opened > level) & (inside > 0)).astype(np.uint8)
+    if not bright.any():
+        return bright
+    n, labels = cv2.connectedComponents(bright, connectivity=8)
+    rim = (inside > 0) & ~(cv2.erode(inside, _SQUARE_3) > 0)
+    reach = np.zeros(n, bool)
+    reach[labels[rim]] = True
+    reach[0] = True
+    return (~reach)[labels].astype(np.uint8)
+
+
+def _stroke_crossings(labels: np.ndarray, stats: np.ndarray, inside: np.ndarray) -> np.ndarray:
+    """Which of the pieces (``labels``, ``stats`` of :func:`~sbplan.detection._small.components`;
+    those of at least SCRATCH_SPECK_PX, in order) run straight from the symbol's edge to its edge
+    (``inside``: 0/1 uint8, the reference outline's interior): both ends of the piece's principal
+    axis lie within 3 px of the outside. bool, one per such piece. A scratch across a stroke
+    narrower than SCRATCH_MIN_LENGTH of the symbol's size (a letter's stem) is as short as a piece
+    of one that runs along an edge."""
+    near_floor = cv2.dilate(1 - inside, np.ones((7, 7), np.uint8)) > 0
+    h, w = inside.shape
+    big = [k for k in np.flatnonzero(stats[:, cv2.CC_STAT_AREA] >= SCRATCH_SPECK_PX).tolist() if k]
+    out = np.zeros(len(big), bool)
+    for j, k in enumerate(big):
+        x, y, bw, bh = (int(v) for v in stats[k, :4])
+        centre, direction, across, along = _principal_axes(labels[y:y + bh, x:x + bw] == k, (x, y))
+        if np.abs(across).max() > SCRATCH_STRAIGHT_PX:
+            continue
+        ends = centre + np.outer([along.min(), along.max()], direction)
+        col = np.clip(np.rint(ends[:, 0]).astype(np.int64), 0, w - 1)
+        row = np.clip(np.rint(ends[:, 1]).astype(np.int64), 0, h - 1)
+        out[j] = bool(near_floor[row, col].all())
+    return out
 
 
 def _foreign_pieces(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, levels: np.ndarray,
