@@ -256,7 +256,8 @@ def _lattice(centres: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, int, np.
     idx = idx.astype(np.int64)
     cols, rows = int(idx[:, 0].max()) + 1, int(idx[:, 1].max()) + 1
     pitch = min(np.linalg.norm(u), np.linalg.norm(w))
-    return pts, idx, cols, rows, homography, float(pitch)
+    # (the loop sets one every round: a fitted homography or the affine fallback)
+    return pts, idx, cols, rows, np.asarray(homography, np.float64), float(pitch)
 
 def _affine_homography(idx: np.ndarray, pts: np.ndarray) -> np.ndarray:
     a = np.column_stack([idx, np.ones(len(idx))])

@@ -502,7 +502,7 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
         floor = 1 - inside
         own = cv2.dilate(floor - cv2.morphologyEx(floor, cv2.MORPH_OPEN, square), _SQUARE_3)
         # (the lines the test judges are the ones painted below: worked out once)
-        lines = _scratch_lines(thin & (1 - own), core)
+        lines = _scratch_lines(thin * (own == 0), core)
         if not _scratch_like(patch, thin, inside, v, step, lines & inside):
             continue
         # The symbol is scratched: the thin bright lines that reach its interior are taken for
