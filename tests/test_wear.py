@@ -251,6 +251,10 @@ def test_an_object_over_the_corner_of_a_scratched_symbol_still_occupies_its_cell
     # inside the ink is shorter than the part of the symbol's size a line had to cross
     ("worn-moved", 4, 4006, (0, 4)),
     ("worn-moved", 2, 2014, (0, 7)),
+    # 1 px scratches along the flag's lower edge: their antialiased, blurred rims, half of the
+    # thin-line mask, read well below the floor's level, and the line was taken for an object's
+    ("worn-moved", 3, 3015, (0, 8)),
+    ("worn-moved", 39, 39008, (2, 1)),
 ])
 def test_a_scratch_that_runs_along_a_symbols_edge_leaves_its_cell_free(bench_calibrations, condition, seed,
                                                                         scene_seed, cell):
