@@ -677,7 +677,10 @@ def _scratch_like(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, level
     beside = _beside(thin, thin | _straight_courses(over.astype(np.uint8)), _core(inside))
     if not beside.any():
         return False
-    around = patch[beside].astype(np.float32)
+    # (each at its darkest neighbour, as the line is read at its brightest: a wide scratch's
+    # blurred rims reach past the thin-line mask into what is beside it, while an object's own
+    # surface beside its light stripes reads light throughout)
+    around = cv2.erode(patch, np.ones((3, 3), np.uint8))[beside].astype(np.float32)
     return (float(median(around)) <= ink + SCRATCH_INK_LEVEL * step
             and percentile(around, 90) <= ink + 2 * SCRATCH_INK_LEVEL * step)
 
