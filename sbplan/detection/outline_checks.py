@@ -666,12 +666,13 @@ def _scratch_like(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, level
     # edge), ink
     floor, ink = percentile(levels[1], 50), percentile(levels[0], 25)
     darker = SCRATCH_PIECES_FLOOR_LEVEL if in_pieces else SCRATCH_FLOOR_LEVEL
-    # (read along the line's ridge, each pixel's brightest neighbour: the mask holds a line's
+    # (pieces read along their ridge, each pixel's brightest neighbour: the mask holds a line's
     # antialiased, blurred rims too, which make up half of a 1 px scratch and read near the ink,
-    # so its median put such a scratch well below the floor; an object's darker line stays dark
-    # along its ridge)
-    ridge = cv2.dilate(patch, np.ones((3, 3), np.uint8))
-    if float(median(ridge[over])) < floor - darker * step:
+    # and their median put such a scratch beyond the pieces' narrow margin below the floor; a whole
+    # line's wider margin takes that blur, and the ridge's pick of the noise's brightest would let
+    # an object's light stripe pass it)
+    level = cv2.dilate(patch, np.ones((3, 3), np.uint8)) if in_pieces else patch
+    if float(median(level[over])) < floor - darker * step:
         return False
     # (a scratch's own pixels where the thin-line mask has gaps along it lie on its course)
     beside = _beside(thin, thin | _straight_courses(over.astype(np.uint8)), _core(inside))
