@@ -291,3 +291,16 @@ def test_an_object_over_part_of_a_symbol_scratched_along_its_edge_still_occupies
     occupied, truth = _bench_cells(bench_calibrations, "worn", 0, 3, [np.asarray(o) for o in plain.obstacles] + [block])
     assert truth.cells[4, 2] == 1
     assert occupied[4, 2]
+
+
+@pytest.mark.parametrize("condition, seed, scene_seed, cell", [
+    ("worn", 20, 20006, (2, 2)),
+    ("worn", 22, 22014, (4, 9)),
+])
+def test_a_wide_scratch_corner_to_corner_leaves_its_cell_free(bench_calibrations, condition, seed, scene_seed, cell):
+    # a 3 px scratch from the stem to the flag's far corner covers more than SCRATCH_MAX_AREA of the
+    # symbol as one straight line whose thin-line mask, rims and all, is just over 6 px wide
+    occupied, truth = _bench_cells(bench_calibrations, condition, seed, scene_seed)
+    assert truth.cells[cell] == 0
+    assert not occupied[cell]
+    assert score_cells(occupied, truth.cells).fp == 0

@@ -605,6 +605,10 @@ def ink_piece_hidden(ink: np.ndarray, origin: tuple[int, int], points: np.ndarra
 #: has many lines, or lines with its own surface around them.
 SCRATCH_MAX_LINES = 3
 SCRATCH_MAX_AREA = 0.16
+#: How wide (pixels) the thin-line mask of the widest scratch is: its own width and up to 2 px of
+#: antialiased, blurred rim each side (3 px scratches corner to corner on the suite's 1280 x 960
+#: floors measured 4.9 to 6.05 px, and at 6 px the widest were called obstacles).
+SCRATCH_MASK_WIDTH_PX = SCRATCH_WIDTH_PX + 4
 #: A line shorter than this part of the symbol's size across is taken for the part inside the ink
 #: of a scratch that runs on along the edge, or left in pieces by passing close to it, and its
 #: pieces must read closer to the floor's level (SCRATCH_PIECES_FLOOR_LEVEL); pieces of fewer
@@ -641,8 +645,9 @@ def _scratch_like(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, level
     over = scratch_lines > 0
     area = max(int(inside.sum()), 1)
     covered = int(over.sum())
-    # (a long scratch corner to corner covers more, but as one thin straight line)
-    if covered > SCRATCH_MAX_AREA * area and covered > (SCRATCH_WIDTH_PX + 3) * _straight_length(over):
+    # (a long scratch corner to corner covers more, but as one thin straight line: the widest
+    # scratch and its blurred rims, SCRATCH_MASK_WIDTH_PX across)
+    if covered > SCRATCH_MAX_AREA * area and covered > SCRATCH_MASK_WIDTH_PX * _straight_length(over):
         return False
     n, labels, stats, _ = components(over.astype(np.uint8))
     # (a few pixels left where the line grazes the outline's antialiased edge are no line of their own)
