@@ -252,6 +252,15 @@ def test_a_light_stripe_of_an_object_over_a_symbols_foot_is_no_scratch(bench_cal
     assert occupied[3, 3]
 
 
+def test_a_light_stripe_of_an_object_beside_a_scratch_is_no_second_scratch(bench_calibrations):
+    # a striped object over the stem's upper left edge (4.7 % of the symbol) of a symbol scratched
+    # across its flag: one light stripe reaches into the stem, a short line across the scratch's
+    # course, and was painted over as a second scratch's piece
+    occupied, truth = _bench_cells(bench_calibrations, "worn", 28, 28016)
+    assert truth.cells[3, 7] == 1 and truth.overlap[3, 7] > 0.04
+    assert occupied[3, 7]
+
+
 @pytest.mark.parametrize("condition, seed, scene_seed, cell", [
     # a scratch through the stem that runs on along the flag's lower edge, beside a dirt speck:
     # the flag's notch and the floor pinched by the speck were counted as lines of their own

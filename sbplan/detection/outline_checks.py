@@ -666,6 +666,9 @@ def _scratch_like(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, level
         pieces = np.isin(labels, np.flatnonzero(np.r_[0, stats[1:, cv2.CC_STAT_AREA]] >= SCRATCH_SPECK_PX))
         if _straight_length(pieces) < SCRATCH_COURSE_PX:
             return False
+    elif len(lines) > 1 and not _short_lines_in_line(labels, stats, need):
+        # (beside a whole line, a short one is a piece of a scratch only on a scratch's course)
+        return False
     # the lines are floor-coloured (pieces in a row, which an obstacle's edge can make, closer to
     # the floor's level), and the pixels beside them, inside the symbol (away from its blurred
     # edge), ink
@@ -689,6 +692,24 @@ def _scratch_like(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, level
     around = cv2.erode(patch, np.ones((3, 3), np.uint8))[beside].astype(np.float32)
     return (float(median(around)) <= ink + SCRATCH_INK_LEVEL * step
             and percentile(around, 90) <= ink + 2 * SCRATCH_INK_LEVEL * step)
+
+
+def _short_lines_in_line(labels: np.ndarray, stats: np.ndarray, need: float) -> bool:
+    """Does each short line (a piece of ``labels``, :func:`components`' labels and ``stats``, of
+    at least SCRATCH_SPECK_PX pixels whose box's diagonal is under ``need``) lie on one straight
+    course with some long line (a box diagonal of ``need`` or more)?
+
+    A scratch that passes close to the edge leaves pieces in line with the rest of it; a light
+    stripe of an object over the symbol's edge leaves a short line of its own, across the
+    scratch's course."""
+    size = np.hypot(stats[:, cv2.CC_STAT_WIDTH], stats[:, cv2.CC_STAT_HEIGHT])
+    big = stats[:, cv2.CC_STAT_AREA] >= SCRATCH_SPECK_PX
+    big[0] = False
+    long = np.flatnonzero(big & (size >= need))
+    for k in np.flatnonzero(big & (size < need)).tolist():
+        if not any(_straight_length((labels == k) | (labels == j)) > 0 for j in long.tolist()):
+            return False
+    return True
 
 
 def _foreign_pieces(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, levels: np.ndarray,
