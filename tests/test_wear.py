@@ -243,6 +243,24 @@ def test_an_object_over_the_corner_of_a_scratched_symbol_still_occupies_its_cell
     assert occupied[3, 0]
 
 
+def test_a_light_stripe_of_an_object_over_a_symbols_foot_is_no_scratch(bench_calibrations):
+    # a striped object over the stem's foot (8.7 % of the symbol), one light stripe across the
+    # stem: the stripe, a whole line, reads darker than a scratch by a few grey levels only, which
+    # each line pixel's brightest neighbour (the pieces' level) would add
+    occupied, truth = _bench_cells(bench_calibrations, "worn-moved", 23, 23010)
+    assert truth.cells[3, 3] == 1 and truth.overlap[3, 3] > 0.05
+    assert occupied[3, 3]
+
+
+def test_a_light_stripe_of_an_object_beside_a_scratch_is_no_second_scratch(bench_calibrations):
+    # a striped object over the stem's upper left edge (4.7 % of the symbol) of a symbol scratched
+    # across its flag: one light stripe reaches into the stem, a short line across the scratch's
+    # course, and was painted over as a second scratch's piece
+    occupied, truth = _bench_cells(bench_calibrations, "worn", 28, 28016)
+    assert truth.cells[3, 7] == 1 and truth.overlap[3, 7] > 0.04
+    assert occupied[3, 7]
+
+
 @pytest.mark.parametrize("condition, seed, scene_seed, cell", [
     # a scratch through the stem that runs on along the flag's lower edge, beside a dirt speck:
     # the flag's notch and the floor pinched by the speck were counted as lines of their own
@@ -251,6 +269,13 @@ def test_an_object_over_the_corner_of_a_scratched_symbol_still_occupies_its_cell
     # inside the ink is shorter than the part of the symbol's size a line had to cross
     ("worn-moved", 4, 4006, (0, 4)),
     ("worn-moved", 2, 2014, (0, 7)),
+    # 1 px scratches along the flag's lower edge: their antialiased, blurred rims, half of the
+    # thin-line mask, read well below the floor's level, and the line was taken for an object's
+    ("worn-moved", 3, 3015, (0, 8)),
+    ("worn-moved", 39, 39008, (2, 1)),
+    # a 3 px scratch across the top of the stem, just under the flag's lower edge: its blurred rims
+    # beside the thin-line mask were taken for an object's surface beside a light stripe
+    ("worn-moved", 45, 45013, (1, 5)),
 ])
 def test_a_scratch_that_runs_along_a_symbols_edge_leaves_its_cell_free(bench_calibrations, condition, seed,
                                                                         scene_seed, cell):
@@ -275,6 +300,19 @@ def test_an_object_over_part_of_a_symbol_scratched_along_its_edge_still_occupies
     occupied, truth = _bench_cells(bench_calibrations, "worn", 0, 3, [np.asarray(o) for o in plain.obstacles] + [block])
     assert truth.cells[4, 2] == 1
     assert occupied[4, 2]
+
+
+@pytest.mark.parametrize("condition, seed, scene_seed, cell", [
+    ("worn", 20, 20006, (2, 2)),
+    ("worn", 22, 22014, (4, 9)),
+])
+def test_a_wide_scratch_corner_to_corner_leaves_its_cell_free(bench_calibrations, condition, seed, scene_seed, cell):
+    # a 3 px scratch from the stem to the flag's far corner covers more than SCRATCH_MAX_AREA of the
+    # symbol as one straight line whose thin-line mask, rims and all, is just over 6 px wide
+    occupied, truth = _bench_cells(bench_calibrations, condition, seed, scene_seed)
+    assert truth.cells[cell] == 0
+    assert not occupied[cell]
+    assert score_cells(occupied, truth.cells).fp == 0
 
 
 # A dense floor: 16 x 12 symbols of about 26 px at 1280 x 960. Wear breaks a fifth of them at
@@ -372,3 +410,4 @@ def test_a_worn_empty_floor_of_letters_is_all_free(letter_calibrations, symbol, 
     cells = Detector(letter_calibrations[symbol]).find_cells(image)
     assert cells.symbols_rescued > 0
     assert not cells.occupied.any(), np.argwhere(cells.occupied).tolist()
+

@@ -615,6 +615,10 @@ def ink_piece_hidden(ink: np.ndarray, origin: tuple[int, int], points: np.ndarra
 #: has many lines, or lines with its own surface around them.
 SCRATCH_MAX_LINES = 3
 SCRATCH_MAX_AREA = 0.16
+#: How wide (pixels) the thin-line mask of the widest scratch is: its own width and up to 2 px of
+#: antialiased, blurred rim each side (3 px scratches corner to corner on the suite's 1280 x 960
+#: floors measured 4.9 to 6.05 px, and at 6 px the widest were called obstacles).
+SCRATCH_MASK_WIDTH_PX = SCRATCH_WIDTH_PX + 4
 #: A line shorter than this part of the symbol's size across is taken for the part inside the ink
 #: of a scratch that runs on along the edge, or left in pieces by passing close to it, and its
 #: pieces must read closer to the floor's level (SCRATCH_PIECES_FLOOR_LEVEL); pieces of fewer
@@ -651,20 +655,22 @@ def _scratch_like(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, level
     over = scratch_lines > 0
     area = max(int(inside.sum()), 1)
     covered = int(over.sum())
-    # (a long scratch corner to corner covers more, but as one thin straight line)
-    if covered > SCRATCH_MAX_AREA * area and covered > (SCRATCH_WIDTH_PX + 3) * _straight_length(over):
+    # (a long scratch corner to corner covers more, but as one thin straight line: the widest
+    # scratch and its blurred rims, SCRATCH_MASK_WIDTH_PX across)
+    if covered > SCRATCH_MAX_AREA * area and covered > SCRATCH_MASK_WIDTH_PX * _straight_length(over):
         return False
     n, labels, stats, _ = components(over.astype(np.uint8))
     # (a few pixels left where the line grazes the outline's antialiased edge are no line of their own)
-    lines = stats[1:][stats[1:, cv2.CC_STAT_AREA] >= SCRATCH_SPECK_PX]
+    big = np.r_[False, stats[1:, cv2.CC_STAT_AREA] >= SCRATCH_SPECK_PX]
+    lines = stats[big]
     if not len(lines):
         return False
-    pieces = np.isin(labels, np.flatnonzero(np.r_[0, stats[1:, cv2.CC_STAT_AREA]] >= SCRATCH_SPECK_PX))
+    pieces = big[labels]
     crossing = _stroke_crossings(labels, stats, inside)
     # (one straight scratch across a symbol of several strokes, a Z or a comb, leaves a piece in
     # each stroke, from edge to edge: such pieces along one straight course are one line; a
     # striped object's stripes in line with a scratch end inside the ink)
-    if len(lines) > SCRATCH_MAX_LINES and not (crossing.all() and _straight_length(pieces) > 0):
+    if len(lines) > SCRATCH_MAX_LINES and not (crossing[big].all() and _straight_length(pieces) > 0):
         return False
     # A scratch that runs on along the edge shows a short line inside the ink only, and one that
     # passes close to the edge is left in pieces: short lines must lie along one straight course
@@ -678,18 +684,30 @@ def _scratch_like(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, level
     if in_pieces:
         if _straight_length(pieces) < SCRATCH_COURSE_PX:
             return False
+    elif len(lines) > 1 and not _short_lines_in_line(labels, stats, need, crossing):
+        # (beside a whole line, a short one is a piece of a scratch only on a scratch's course)
+        return False
     # the lines are floor-coloured (pieces in a row, which an obstacle's edge can make, closer to
     # the floor's level), and the pixels beside them, inside the symbol (away from its blurred
     # edge), ink
     floor, ink = percentile(levels[1], 50), percentile(levels[0], 25)
     darker = SCRATCH_PIECES_FLOOR_LEVEL if in_pieces else SCRATCH_FLOOR_LEVEL
-    if float(median(patch[over])) < floor - darker * step:
+    # (pieces read along their ridge, each pixel's brightest neighbour: the mask holds a line's
+    # antialiased, blurred rims too, which make up half of a 1 px scratch and read near the ink,
+    # and their median put such a scratch beyond the pieces' narrow margin below the floor; a whole
+    # line's wider margin takes that blur, and the ridge's pick of the noise's brightest would let
+    # an object's light stripe pass it)
+    level = cv2.dilate(patch, np.ones((3, 3), np.uint8)) if in_pieces else patch
+    if float(median(level[over])) < floor - darker * step:
         return False
     # (a scratch's own pixels where the thin-line mask has gaps along it lie on its course)
     beside = _beside(thin, thin | _straight_courses(over.astype(np.uint8)), _core(inside))
     if not beside.any():
         return False
-    around = patch[beside].astype(np.float32)
+    # (each at its darkest neighbour, as the line is read at its brightest: a wide scratch's
+    # blurred rims reach past the thin-line mask into what is beside it, while an object's own
+    # surface beside its light stripes reads light throughout)
+    around = cv2.erode(patch, np.ones((3, 3), np.uint8))[beside].astype(np.float32)
     return (float(median(around)) <= ink + SCRATCH_INK_LEVEL * step
             and percentile(around, 90) <= ink + 2 * SCRATCH_INK_LEVEL * step)
 
@@ -713,16 +731,17 @@ def _holes(opened: np.ndarray, inside: np.ndarray, level: float) -> np.ndarray:
 
 def _stroke_crossings(labels: np.ndarray, stats: np.ndarray, inside: np.ndarray) -> np.ndarray:
     """Which of the pieces (``labels``, ``stats`` of :func:`~sbplan.detection._small.components`;
-    those of at least SCRATCH_SPECK_PX, in order) run straight from the symbol's edge to its edge
-    (``inside``: 0/1 uint8, the reference outline's interior): both ends of the piece's principal
-    axis lie within 3 px of the outside. bool, one per such piece. A scratch across a stroke
+    those of at least SCRATCH_SPECK_PX) run straight from the symbol's edge to its edge (``inside``:
+    0/1 uint8, the reference outline's interior): both ends of the piece's principal axis lie within
+    3 px of the outside. bool, one per label (False for the background). A scratch across a stroke
     narrower than SCRATCH_MIN_LENGTH of the symbol's size (a letter's stem) is as short as a piece
     of one that runs along an edge."""
     near_floor = cv2.dilate(1 - inside, np.ones((7, 7), np.uint8)) > 0
     h, w = inside.shape
-    big = [k for k in np.flatnonzero(stats[:, cv2.CC_STAT_AREA] >= SCRATCH_SPECK_PX).tolist() if k]
-    out = np.zeros(len(big), bool)
-    for j, k in enumerate(big):
+    out = np.zeros(len(stats), bool)
+    for k in np.flatnonzero(stats[:, cv2.CC_STAT_AREA] >= SCRATCH_SPECK_PX).tolist():
+        if k == 0:
+            continue
         x, y, bw, bh = (int(v) for v in stats[k, :4])
         centre, direction, across, along = _principal_axes(labels[y:y + bh, x:x + bw] == k, (x, y))
         if np.abs(across).max() > SCRATCH_STRAIGHT_PX:
@@ -730,8 +749,28 @@ def _stroke_crossings(labels: np.ndarray, stats: np.ndarray, inside: np.ndarray)
         ends = centre + np.outer([along.min(), along.max()], direction)
         col = np.clip(np.rint(ends[:, 0]).astype(np.int64), 0, w - 1)
         row = np.clip(np.rint(ends[:, 1]).astype(np.int64), 0, h - 1)
-        out[j] = bool(near_floor[row, col].all())
+        out[k] = bool(near_floor[row, col].all())
     return out
+
+
+def _short_lines_in_line(labels: np.ndarray, stats: np.ndarray, need: float, whole: np.ndarray) -> bool:
+    """Does each short line (a piece of ``labels``, :func:`components`' labels and ``stats``, of
+    at least SCRATCH_SPECK_PX pixels whose box's diagonal is under ``need``) lie on one straight
+    course with some long line (a box diagonal of ``need`` or more)? ``whole`` (one flag per label)
+    marks the pieces that need no long line and count as one: those across a stroke from edge to
+    edge.
+
+    A scratch that passes close to the edge leaves pieces in line with the rest of it; a light
+    stripe of an object over the symbol's edge leaves a short line of its own, across the
+    scratch's course."""
+    size = np.hypot(stats[:, cv2.CC_STAT_WIDTH], stats[:, cv2.CC_STAT_HEIGHT])
+    big = stats[:, cv2.CC_STAT_AREA] >= SCRATCH_SPECK_PX
+    big[0] = False
+    long = np.flatnonzero(big & ((size >= need) | whole))
+    for k in np.flatnonzero(big & (size < need) & ~whole).tolist():
+        if not any(_straight_length((labels == k) | (labels == j)) > 0 for j in long.tolist()):
+            return False
+    return True
 
 
 def _foreign_pieces(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, levels: np.ndarray,
