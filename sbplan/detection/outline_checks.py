@@ -431,6 +431,7 @@ SCRATCH_LEVEL = 0.3
 
 
 _SQUARE_3 = np.ones((3, 3), np.uint8)
+_SQUARE_5 = np.ones((5, 5), np.uint8)
 
 
 def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarray, y: np.ndarray,
@@ -490,10 +491,17 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
         thin = (cv2.subtract(patch, opened) > SCRATCH_LEVEL * step).astype(np.uint8)
         inside = np.zeros_like(thin)
         cv2.fillPoly(inside, [np.rint((outline - (x0, y0)) * 16).astype(np.int32)], 1, cv2.LINE_8, shift=4)
-        inside &= 1 - _holes(opened, inside, float(median(v[0])) + step / 2)
         core = cv2.erode(inside, deep)
         if not ((core > 0) & (thin > 0)).any():
             continue
+        # (the holes, only for a symbol a thin line reaches into: without them its interior is
+        # larger, so one that no line reaches stays so)
+        holes = _holes(opened, inside, float(median(v[0])) + step / 2)
+        if holes.any():
+            inside &= 1 - holes
+            core = cv2.erode(inside, deep)
+            if not ((core > 0) & (thin > 0)).any():
+                continue
         # The floor in the symbol's own acute notches is a thin bright feature too (the opening
         # takes it), and where a scratch passes by one it joined the scratch's line and bent it:
         # the symbol's own thin floor, from its outline, is no scratch's line. (grown by a pixel:
@@ -719,9 +727,11 @@ def _holes(opened: np.ndarray, inside: np.ndarray, level: float) -> np.ndarray:
     scratches gone), in regions that do not reach the outline (an object over the symbol comes
     from outside it). 0/1 uint8. The ink beside a scratch is not read there, nor painted."""
     bright = ((opened > level) & (inside > 0)).astype(np.uint8)
-    if not bright.any():
-        return bright
-    n, labels = cv2.connectedComponents(bright, connectivity=8)
+    # (a symbol's antialiased rim reads bright; a hole lies deeper: without bright pixels 2 px in,
+    # there is none, and nothing to label)
+    if not (bright & cv2.erode(inside, _SQUARE_5)).any():
+        return np.zeros_like(inside)
+    n, labels, _, _ = components(bright)
     rim = (inside > 0) & ~(cv2.erode(inside, _SQUARE_3) > 0)
     reach = np.zeros(n, bool)
     reach[labels[rim]] = True
