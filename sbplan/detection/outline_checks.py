@@ -729,7 +729,7 @@ def _holes(opened: np.ndarray, inside: np.ndarray, level: float) -> np.ndarray:
     bright = ((opened > level) & (inside > 0)).astype(np.uint8)
     # (a symbol's antialiased rim reads bright; a hole lies deeper: without bright pixels 2 px in,
     # there is none, and nothing to label)
-    if not (bright & cv2.erode(inside, _SQUARE_5)).any():
+    if not (bright.astype(bool) & (cv2.erode(inside, _SQUARE_5) > 0)).any():
         return np.zeros_like(inside)
     n, labels, _, _ = components(bright)
     rim = (inside > 0) & ~(cv2.erode(inside, _SQUARE_3) > 0)
