@@ -449,7 +449,8 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
     ``SCRATCH_WIDTH_PX`` wide; the pixels it lowers by ``SCRATCH_LEVEL`` of the symbol's step are
     thin bright features; when one of them reaches ``SCRATCH_DEPTH_PX`` inside the outline the
     symbol is scratched: inside the outline they take the ink's level (the median grey level its
-    edge probes read inside), outside it the opened value, and the edge is read again.
+    edge probes read inside), outside it they stay as they are (floor on the floor: the opening
+    would darken the floor in the symbol's own notches), and the edge is read again.
 
     Parameters
     ----------
@@ -519,8 +520,9 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
         # and the antialiased pixels along them, which fall short of the level. Inside the
         # reference outline they are painted with the symbol's ink (where the scratch runs within
         # a pixel or two of the edge, the ink between them is lost in the blur and the opening
-        # reads floor there), outside with the opened image. A thin bright piece elsewhere (the
-        # light part of an object over a tip or a corner of the symbol) is no scratch's and stays.
+        # reads floor there); outside, a scratch is floor on the floor and stays. A thin bright
+        # piece elsewhere (the light part of an object over a tip or a corner of the symbol) is no
+        # scratch's and stays.
         # (each piece inside the symbol with ink beside it: a striped object over a scratched
         # symbol has its own surface beside its light stripes, which are not painted over)
         thin = lines & ~_foreign_pieces(patch, thin, inside, v, step)
