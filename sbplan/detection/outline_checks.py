@@ -677,6 +677,10 @@ def _scratch_like(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, level
         return False
     pieces = big[labels]
     crossing = _stroke_crossings(labels, stats, inside)
+    # (several pieces across strokes that lie on no one course are an object's stripes over a
+    # tip, each from edge to edge as a scratch's piece is: none is whole then)
+    if np.count_nonzero(crossing) > 1 and not _straight_length(crossing[labels]) > 0:
+        crossing[:] = False
     # (one straight scratch across a symbol of several strokes, a Z or a comb, leaves a piece in
     # each stroke, from edge to edge: such pieces along one straight course are one line; a
     # striped object's stripes in line with a scratch end inside the ink)
@@ -745,9 +749,9 @@ def _stroke_crossings(labels: np.ndarray, stats: np.ndarray, inside: np.ndarray)
     """Which of the pieces (``labels``, ``stats`` of :func:`~sbplan.detection._small.components`;
     those of at least SCRATCH_SPECK_PX) run straight from the symbol's edge to its edge (``inside``:
     0/1 uint8, the reference outline's interior): both ends of the piece's principal axis lie within
-    3 px of the outside. bool, one per label (False for the background). A scratch across a stroke
-    narrower than SCRATCH_MIN_LENGTH of the symbol's size (a letter's stem) is as short as a piece
-    of one that runs along an edge."""
+    3 px of the outside, and it is at least SCRATCH_COURSE_PX long. bool, one per label (False for
+    the background). A scratch across a stroke narrower than SCRATCH_MIN_LENGTH of the symbol's size
+    (a letter's stem) is as short as a piece of one that runs along an edge."""
     near_floor = cv2.dilate(1 - inside, np.ones((7, 7), np.uint8)) > 0
     h, w = inside.shape
     out = np.zeros(len(stats), bool)
@@ -756,7 +760,9 @@ def _stroke_crossings(labels: np.ndarray, stats: np.ndarray, inside: np.ndarray)
             continue
         x, y, bw, bh = (int(v) for v in stats[k, :4])
         centre, direction, across, along = _principal_axes(labels[y:y + bh, x:x + bw] == k, (x, y))
-        if np.abs(across).max() > SCRATCH_STRAIGHT_PX:
+        # (across a stroke at least a scratch's course long: across a tip's last few pixels, an
+        # object's light stripe runs from edge to edge as well)
+        if np.abs(across).max() > SCRATCH_STRAIGHT_PX or np.ptp(along) < SCRATCH_COURSE_PX:
             continue
         ends = centre + np.outer([along.min(), along.max()], direction)
         col = np.clip(np.rint(ends[:, 0]).astype(np.int64), 0, w - 1)
