@@ -182,3 +182,18 @@ def test_the_movement_error_compares_the_movement_at_the_centre_on_both_sides():
         assert truth.params["camera"]["motion"]["sag_deg"]
         err_px, err_deg = _motion_error(detector.find_cells(image).camera, truth)
         assert err_px < 0.1 and err_deg < 0.005
+
+
+def test_bench_detect_runs_on_another_symbol(capsys):
+    args = ["bench", "detect", "--conditions", "clean", "--scenes", "1", "--size", "480x360", "--grid", "6x4",
+            "--repeat", "1", "--variants", "default", "--symbol", "letter-p"]
+    assert main(args + ["--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["setup"]["symbol"] == "letter-p"
+    default = next(r for r in result["rows"] if r["method"] == "sbplan default")
+    assert default["frames"] == 1 and default["error"] is None and default["tp"] + default["tn"] > 0
+    assert main(args) == 0
+    assert "rows of letter-p" in capsys.readouterr().out
+    assert main(args[:-1] + ["letter-q"]) != 0
+    err = capsys.readouterr().err
+    assert "--symbol: unknown symbol 'letter-q'" in err and "letter-p" in err

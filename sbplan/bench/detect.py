@@ -88,6 +88,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scenes", type=int, default=5, help="scenes per condition (default 5)")
     parser.add_argument("--size", type=_size, default=(1280, 960), help="image size WxH (default 1280x960)")
     parser.add_argument("--grid", type=_grid, default=(10, 5), help="grid COLSxROWS (default 10x5)")
+    parser.add_argument("--symbol", default="flag", metavar="NAME",
+                        help="the floor's symbol, a registered one (default flag): the suite on another shape")
     parser.add_argument("--seed", type=int, default=0, help="scene seed (default 0; same for every method)")
     parser.add_argument("--repeat", type=int, default=3, help="timed runs of each frame (default 3)")
     parser.add_argument("--slow-scenes", type=int, default=1,
@@ -146,9 +148,12 @@ def _timed(fn: Callable[[np.ndarray], R], image: np.ndarray, repeat: int) -> tup
 
 def measure(*, conditions: list[str] | None = None, scenes: int = 5, size: tuple[int, int] = (1280, 960),
             grid: tuple[int, int] = (10, 5), seed: int = 0, repeat: int = 3, slow_scenes: int = 1,
-            all_variants: bool = True, progress: Callable[[int, int, str], None] | None = None) -> dict[str, Any]:
+            all_variants: bool = True, symbol: str = "flag",
+            progress: Callable[[int, int, str], None] | None = None) -> dict[str, Any]:
     """Run the benchmark; return the results as a dict (what ``--json`` prints).
     ``progress(done, total, what)`` is called before each condition's set-up and each method.
+    ``symbol`` names the symbol printed on the floor (a registered one; the ArUco floor is the same
+    whatever it is).
 
     Returns
     -------
@@ -164,6 +169,9 @@ def measure(*, conditions: list[str] | None = None, scenes: int = 5, size: tuple
     for opt, v, lo in (("--scenes", scenes, 1), ("--repeat", repeat, 1), ("--slow-scenes", slow_scenes, 0)):
         if isinstance(v, bool) or not isinstance(v, int) or v < lo:
             raise InputError(f"{opt}: expected an integer >= {lo}, got {v!r}")
+    known = registry.symbol_names()
+    if symbol not in known:
+        raise InputError(f"--symbol: unknown symbol {symbol!r}; registered: {', '.join(known)}")
     cv2.setNumThreads(1)
     variants = sbplan_variants(all_variants=all_variants)
     cols, rows = grid
@@ -185,7 +193,7 @@ def measure(*, conditions: list[str] | None = None, scenes: int = 5, size: tuple
 
     for cond in names:
         step(f"{cond}: rendering and calibrating")
-        sym = list(condition_scenes(cond, scenes=scenes, size=size, grid=grid, seed=seed))
+        sym = list(condition_scenes(cond, scenes=scenes, size=size, grid=grid, seed=seed, symbol=symbol))
         aru = list(condition_scenes(cond, scenes=scenes, size=size, grid=grid, seed=seed, layout="aruco"))
         reference, centres = sym[0][0], sym[0][2].centres_px
         methods: list[tuple[str, bool, Any, list]] = []
@@ -253,7 +261,7 @@ def measure(*, conditions: list[str] | None = None, scenes: int = 5, size: tuple
         })
     return {
         "setup": {
-            "conditions": names, "scenes": scenes, "size": list(size), "grid": list(grid), "seed": seed,
+            "conditions": names, "scenes": scenes, "size": list(size), "grid": list(grid), "symbol": symbol, "seed": seed,
             "repeat": repeat, "slow_scenes": slow_scenes, "threads": 1, "machine": platform.machine(),
             "python": platform.python_version(), "opencv": cv2.__version__, "numpy": np.__version__,
         },
@@ -314,7 +322,8 @@ def format_tables(result: dict[str, Any]) -> str:
     by = {(r["condition"], r["method"]): r for r in rows}
     lines = [
         f"{len(conds)} conditions x {s['scenes']} scenes, {s['size'][0]}x{s['size'][1]}, grid of "
-        f"{s['grid'][0]} columns × {s['grid'][1]} rows, seed {s['seed']}; {s['repeat']} timed runs per frame, 1 thread; "
+        f"{s['grid'][0]} columns × {s['grid'][1]} rows of {s.get('symbol', 'flag')}, seed {s['seed']}; "
+        f"{s['repeat']} timed runs per frame, 1 thread; "
         f"{s['machine']}, Python {s['python']}, OpenCV {s['opencv']}, numpy {s['numpy']}",
         "columns: 'default' = sbplan's default pipeline; other sbplan columns swap one stage; "
         "aruco-grid sees the ArUco floor, the rest the symbol floor",
@@ -389,7 +398,7 @@ def plot(result: dict[str, Any], *, width: int = 1600, height: int = 1000) -> np
     font = cv2.FONT_HERSHEY_SIMPLEX
     left, right, top = 110, 30, 70
     s = result["setup"]
-    title = (f"sbplan bench detect: {s['size'][0]}x{s['size'][1]}, {s['grid'][0]}x{s['grid'][1]} cells, "
+    title = (f"sbplan bench detect: {s['size'][0]}x{s['size'][1]}, {s['grid'][0]}x{s['grid'][1]} {s.get('symbol', 'flag')}, "
              f"{s['scenes']} scene{'s' if s['scenes'] != 1 else ''} per condition, 1 thread")
     cv2.putText(img, title, (left, 35), font, 0.8, (0, 0, 0), 2, cv2.LINE_AA)
     panel_h = (height - top - 150) // 2
@@ -456,7 +465,7 @@ def run(args: argparse.Namespace) -> int:
     with camera_warnings_muted(), StderrProgress("bench detect") as progress:
         result = measure(conditions=args.conditions, scenes=args.scenes, size=args.size, grid=args.grid,
                          seed=args.seed, repeat=args.repeat, slow_scenes=args.slow_scenes,
-                         all_variants=args.variants == "all", progress=progress)
+                         all_variants=args.variants == "all", symbol=args.symbol, progress=progress)
     if args.plot:
         write_image(args.plot, plot(result))
     if args.json:
