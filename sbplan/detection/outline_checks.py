@@ -432,6 +432,7 @@ SCRATCH_LEVEL = 0.3
 
 _SQUARE_3 = np.ones((3, 3), np.uint8)
 _SQUARE_5 = np.ones((5, 5), np.uint8)
+_SQUARE_7 = np.ones((7, 7), np.uint8)
 
 
 def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarray, y: np.ndarray,
@@ -698,7 +699,7 @@ def _scratch_like(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, level
     if in_pieces:
         if _straight_length(pieces) < SCRATCH_COURSE_PX:
             return False
-    elif len(lines) > 1 and not _short_lines_in_line(labels, stats, need, crossing):
+    elif len(lines) > 1 and not _short_lines_in_line(labels, stats, big, need, crossing):
         # (beside a whole line, a short one is a piece of a scratch only on a scratch's course)
         return False
     # the lines are floor-coloured (pieces in a row, which an obstacle's edge can make, closer to
@@ -711,7 +712,7 @@ def _scratch_like(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, level
     # and their median put such a scratch beyond the pieces' narrow margin below the floor; a whole
     # line's wider margin takes that blur, and the ridge's pick of the noise's brightest would let
     # an object's light stripe pass it)
-    level = cv2.dilate(patch, np.ones((3, 3), np.uint8)) if in_pieces else patch
+    level = cv2.dilate(patch, _SQUARE_3) if in_pieces else patch
     if float(median(level[over])) < floor - darker * step:
         return False
     # (a scratch's own pixels where the thin-line mask has gaps along it lie on its course)
@@ -721,7 +722,7 @@ def _scratch_like(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, level
     # (each at its darkest neighbour, as the line is read at its brightest: a wide scratch's
     # blurred rims reach past the thin-line mask into what is beside it, while an object's own
     # surface beside its light stripes reads light throughout)
-    around = cv2.erode(patch, np.ones((3, 3), np.uint8))[beside].astype(np.float32)
+    around = cv2.erode(patch, _SQUARE_3)[beside].astype(np.float32)
     return (float(median(around)) <= ink + SCRATCH_INK_LEVEL * step
             and percentile(around, 90) <= ink + 2 * SCRATCH_INK_LEVEL * step)
 
@@ -746,44 +747,40 @@ def _holes(opened: np.ndarray, inside: np.ndarray, level: float) -> np.ndarray:
 
 
 def _stroke_crossings(labels: np.ndarray, stats: np.ndarray, inside: np.ndarray) -> np.ndarray:
-    """Which of the pieces (``labels``, ``stats`` of :func:`~sbplan.detection._small.components`;
-    those of at least SCRATCH_SPECK_PX) run straight from the symbol's edge to its edge (``inside``:
-    0/1 uint8, the reference outline's interior): both ends of the piece's principal axis lie within
-    3 px of the outside, and it is at least SCRATCH_COURSE_PX long. bool, one per label (False for
-    the background). A scratch across a stroke narrower than SCRATCH_MIN_LENGTH of the symbol's size
+    """Which of the pieces (``labels``, ``stats`` of :func:`~sbplan.detection._small.components`)
+    run straight from the symbol's edge to its edge (``inside``: 0/1 uint8, the reference
+    outline's interior): pieces with a course of their own (:func:`_course`: at least a scratch's
+    course long; across a tip's last few pixels an object's light stripe runs from edge to edge as
+    well) whose two ends lie within 3 px of the outside. bool, one per label (False for the
+    background). A scratch across a stroke narrower than SCRATCH_MIN_LENGTH of the symbol's size
     (a letter's stem) is as short as a piece of one that runs along an edge."""
-    near_floor = cv2.dilate(1 - inside, np.ones((7, 7), np.uint8)) > 0
+    near_floor = cv2.dilate(1 - inside, _SQUARE_7) > 0
     h, w = inside.shape
     out = np.zeros(len(stats), bool)
-    for k in np.flatnonzero(stats[:, cv2.CC_STAT_AREA] >= SCRATCH_SPECK_PX).tolist():
-        if k == 0:
+    for k in range(1, len(stats)):
+        course = _course(labels, stats, k)
+        if course is None:
             continue
-        x, y, bw, bh = (int(v) for v in stats[k, :4])
-        centre, direction, across, along = _principal_axes(labels[y:y + bh, x:x + bw] == k, (x, y))
-        # (across a stroke at least a scratch's course long: across a tip's last few pixels, an
-        # object's light stripe runs from edge to edge as well)
-        if np.abs(across).max() > SCRATCH_STRAIGHT_PX or np.ptp(along) < SCRATCH_COURSE_PX:
-            continue
-        ends = centre + np.outer([along.min(), along.max()], direction)
+        centre, direction, lo, hi = course
+        ends = centre + np.outer([lo, hi], direction)
         col = np.clip(np.rint(ends[:, 0]).astype(np.int64), 0, w - 1)
         row = np.clip(np.rint(ends[:, 1]).astype(np.int64), 0, h - 1)
         out[k] = bool(near_floor[row, col].all())
     return out
 
 
-def _short_lines_in_line(labels: np.ndarray, stats: np.ndarray, need: float, whole: np.ndarray) -> bool:
-    """Does each short line (a piece of ``labels``, :func:`components`' labels and ``stats``, of
-    at least SCRATCH_SPECK_PX pixels whose box's diagonal is under ``need``) lie on one straight
-    course with some long line (a box diagonal of ``need`` or more)? ``whole`` (one flag per label)
-    marks the pieces that need no long line and count as one: those across a stroke from edge to
-    edge.
+def _short_lines_in_line(labels: np.ndarray, stats: np.ndarray, big: np.ndarray, need: float,
+                         whole: np.ndarray) -> bool:
+    """Does each short line (a piece of ``labels``, :func:`components`' labels and ``stats``,
+    among those ``big`` marks (one flag per label), whose box's diagonal is under ``need``) lie on
+    one straight course with some long line (a box diagonal of ``need`` or more)? ``whole`` (one
+    flag per label) marks the pieces that need no long line and count as one: those across a
+    stroke from edge to edge.
 
     A scratch that passes close to the edge leaves pieces in line with the rest of it; a light
     stripe of an object over the symbol's edge leaves a short line of its own, across the
     scratch's course."""
     size = np.hypot(stats[:, cv2.CC_STAT_WIDTH], stats[:, cv2.CC_STAT_HEIGHT])
-    big = stats[:, cv2.CC_STAT_AREA] >= SCRATCH_SPECK_PX
-    big[0] = False
     long = np.flatnonzero(big & ((size >= need) | whole))
     for k in np.flatnonzero(big & (size < need) & ~whole).tolist():
         if not any(_straight_length((labels == k) | (labels == j)) > 0 for j in long.tolist()):
@@ -815,13 +812,13 @@ def _foreign_pieces(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, lev
 
 def _core(inside: np.ndarray) -> np.ndarray:
     """The symbol's interior (0/1 uint8 ``inside``) away from its blurred edge, bool."""
-    return cv2.erode(inside, np.ones((5, 5), np.uint8)) > 0
+    return cv2.erode(inside, _SQUARE_5) > 0
 
 
 def _beside(lines: np.ndarray, own: np.ndarray, core: np.ndarray) -> np.ndarray:
     """The pixels of ``core`` within 3 pixels of ``lines`` but more than one from ``own`` (the
     lines' own pixels; 0/1 uint8 masks): what lies beside a thin line, bool."""
-    return (cv2.dilate(lines, np.ones((7, 7), np.uint8)) > 0) & ~(cv2.dilate(own, np.ones((3, 3), np.uint8)) > 0) & core
+    return (cv2.dilate(lines, _SQUARE_7) > 0) & ~(cv2.dilate(own, _SQUARE_3) > 0) & core
 
 
 def _principal_axes(mask: np.ndarray, origin: tuple[int, int] = (0, 0)
@@ -842,28 +839,40 @@ def _principal_axes(mask: np.ndarray, origin: tuple[int, int] = (0, 0)
     return np.array([cx, cy]), np.array([c, s]), c * y - s * x, c * x + s * y
 
 
-#: A piece of a scratch has a course of its own (:func:`_straight_courses`) when it is at least
+#: A piece of a scratch has a course of its own (:func:`_course`) when it is at least
 #: this long (pixels): twice the band a straight scratch's pixels lie in.
 SCRATCH_COURSE_PX = 2 * SCRATCH_STRAIGHT_PX
 
 
+def _course(labels: np.ndarray, stats: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray, float, float] | None:
+    """The straight course of piece ``k`` of ``labels`` (``stats`` of
+    :func:`~sbplan.detection._small.components`): its centre ``(x, y)``, its unit direction and
+    the extent of its pixels along it, when it has SCRATCH_SPECK_PX pixels or more, all within
+    :data:`SCRATCH_STRAIGHT_PX` of its principal axis, over at least :data:`SCRATCH_COURSE_PX`;
+    else None (a speck has no direction of its own)."""
+    x, y, w, h = (int(v) for v in stats[k, :4])
+    # (pixel centres no farther apart than the box's diagonal: too short for a course)
+    if stats[k, cv2.CC_STAT_AREA] < SCRATCH_SPECK_PX or np.hypot(w - 1, h - 1) < SCRATCH_COURSE_PX:
+        return None
+    # (the piece's box only: a piece is a few dozen pixels of a window of thousands)
+    centre, direction, across, along = _principal_axes(labels[y:y + h, x:x + w] == k, (x, y))
+    lo, hi = float(along.min()), float(along.max())
+    if np.abs(across).max() > SCRATCH_STRAIGHT_PX or hi - lo < SCRATCH_COURSE_PX:
+        return None
+    return centre, direction, lo, hi
+
+
 def _straight_courses(mask: np.ndarray) -> np.ndarray:
-    """The straight lines through each piece of ``mask`` (H, W; 0/1 uint8) at least
-    :data:`SCRATCH_COURSE_PX` long whose pixels all lie within :data:`SCRATCH_STRAIGHT_PX` of its
-    principal axis, drawn across the whole mask one pixel wide. uint8 0/1."""
+    """The straight lines through each piece of ``mask`` (H, W; 0/1 uint8) that has a course of
+    its own (:func:`_course`), drawn across the whole mask one pixel wide. uint8 0/1."""
     out = np.zeros_like(mask)
     n, labels, stats, _ = components(mask)
     reach = float(sum(mask.shape))
     for k in range(1, n):
-        x, y, w, h = (int(v) for v in stats[k, :4])
-        # (pixel centres no farther apart than the box's diagonal: too short for a course)
-        if stats[k, cv2.CC_STAT_AREA] < SCRATCH_SPECK_PX or np.hypot(w - 1, h - 1) < SCRATCH_COURSE_PX:
+        course = _course(labels, stats, k)
+        if course is None:
             continue
-        # (the piece's box only: a piece is a few dozen pixels of a window of thousands)
-        centre, direction, across, along = _principal_axes(labels[y:y + h, x:x + w] == k, (x, y))
-        # (a speck has no direction of its own: its "course" would be drawn anywhere)
-        if np.abs(across).max() > SCRATCH_STRAIGHT_PX or np.ptp(along) < SCRATCH_COURSE_PX:
-            continue
+        centre, direction = course[0], course[1]
         a, b = centre - reach * direction, centre + reach * direction
         cv2.line(out, (int(round(a[0])), int(round(a[1]))), (int(round(b[0])), int(round(b[1]))), 1, 1)
     return out
