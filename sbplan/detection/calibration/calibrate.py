@@ -370,6 +370,16 @@ def _symbol_members(shapes: Shapes, matcher, *, ref: np.ndarray | None) -> np.nd
     return members
 
 
+#: Two shapes are the same size when their areas differ by less than this factor.
+SAME_SIZE = 1.35
+
+
+def _same_size(areas: np.ndarray, area: np.ndarray | float) -> np.ndarray:
+    """Whether ``areas`` and ``area`` (broadcast together) are within :data:`SAME_SIZE` of each
+    other, either way."""
+    return np.abs(np.log(areas / area)) < np.log(SAME_SIZE)
+
+
 def _completed(shapes: Shapes, members: np.ndarray, matcher) -> np.ndarray:
     """``members`` and, at each position of their lattice that none of them holds, the shape of
     the symbol's size nearest to it, when one lies within half a symbol of it and is like the
@@ -385,7 +395,7 @@ def _completed(shapes: Shapes, members: np.ndarray, matcher) -> np.ndarray:
     median = np.median(shapes.descriptors[members], axis=0)
     dm = distances_between(matcher, shapes.descriptors, median[None, :])[:, 0]
     area = float(np.median(shapes.areas[members]))
-    candidate = (dm < getattr(matcher, "default_threshold", 0.5)) & (np.abs(np.log(shapes.areas / area)) < np.log(1.35))
+    candidate = (dm < getattr(matcher, "default_threshold", 0.5)) & _same_size(shapes.areas, area)
     candidate[members] = False
     found = np.flatnonzero(candidate)
     if not len(found):
@@ -404,8 +414,7 @@ def _dominant_repeated_shape(shapes: Shapes, matcher) -> np.ndarray:
     through a lens that bends the symbols' outlines apart, 35 specks of 140 px2 outnumbered every
     group of the symbols, 17000 px2 each (calibration failed on an "irregular grid")."""
     d = distances_between(matcher, shapes.descriptors, shapes.descriptors)
-    ratio = shapes.areas[:, None] / shapes.areas[None, :]
-    same_size = np.abs(np.log(ratio)) < np.log(1.35)
+    same_size = _same_size(shapes.areas[:, None], shapes.areas[None, :])
     tight = 0.25 * getattr(matcher, "default_threshold", 0.5)
     alike = (d < tight) & same_size
     count = alike.sum(axis=1)
@@ -417,4 +426,4 @@ def _dominant_repeated_shape(shapes: Shapes, matcher) -> np.ndarray:
     dm = distances_between(matcher, shapes.descriptors, median[None, :])[:, 0]
     spread = max(float(np.max(dm[members])), 1e-6)
     area = np.median(shapes.areas[members])
-    return np.flatnonzero((dm <= 2.0 * spread) & (np.abs(np.log(shapes.areas / area)) < np.log(1.35)))
+    return np.flatnonzero((dm <= 2.0 * spread) & _same_size(shapes.areas, area))
