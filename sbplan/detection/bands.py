@@ -63,9 +63,10 @@ class RowBands:
         self._shift = np.repeat(self.starts - self.offsets, heights + 1).astype(np.float64)
 
     @classmethod
-    def around(cls, polygons: Sequence[np.ndarray], shape: tuple[int, int], *, margin: float,
+    def around(cls, polygons: Sequence[np.ndarray] | np.ndarray, shape: tuple[int, int], *, margin: float,
                even: bool = True) -> "RowBands":
-        """The bands covering every polygon's rows plus ``margin`` rows above and below.
+        """The bands covering every polygon's rows plus ``margin`` rows above and below (``polygons``
+        (N, 2) arrays of ``(x, y)`` points, or one (K, N, 2) array of K polygons).
 
         Overlapping or touching bands are merged. With ``even`` (the default) every band starts and
         ends on an even row (or the image's last row), so a binarizer working on a half-size image
@@ -74,8 +75,12 @@ class RowBands:
         if not len(polygons):
             raise InputError("row bands: no polygons to put bands around")
         h = int(shape[0])
-        lo = np.array([np.min(p[:, 1]) for p in polygons]) - margin
-        hi = np.array([np.max(p[:, 1]) for p in polygons]) + margin
+        if isinstance(polygons, np.ndarray) and polygons.ndim == 3:
+            # polygons of one point count (a detector's symbols' boxes, every frame the camera moves)
+            lo, hi = polygons[..., 1].min(axis=1) - margin, polygons[..., 1].max(axis=1) + margin
+        else:
+            lo = np.array([np.min(p[:, 1]) for p in polygons]) - margin
+            hi = np.array([np.max(p[:, 1]) for p in polygons]) + margin
         order = np.argsort(lo)
         lo = np.clip(np.floor(lo[order]), 0, h).astype(np.int64)
         hi = np.clip(np.ceil(hi[order]) + 1, 0, h).astype(np.int64)

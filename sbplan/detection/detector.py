@@ -196,7 +196,7 @@ class Detector:
                                          apply(matrix, self._symbol_corners[:, 0])).max() < 1.0:
             return cached[1]
         corners = self.work.to_work(apply(matrix, self._symbol_corners))
-        around = RowBands.around(list(corners), self.work.work_shape, margin=self._band_margin / self.work.factor)
+        around = RowBands.around(corners, self.work.work_shape, margin=self._band_margin / self.work.factor)
         bands = around if around.fraction <= BANDS_WORTH_IT else None
         self._bands_cache = (matrix, bands)
         return bands
