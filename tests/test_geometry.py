@@ -147,3 +147,22 @@ def test_resample_complex_and_xy_agree_for_lists_and_batches():
     # a later call for a divisor of n reads every other sample of the remembered one
     x16, _ = resample_xy(batch, 16)
     assert np.array_equal(x16, zb.real[:, ::2])
+
+
+@pytest.mark.parametrize("matrix", [
+    [[1.002, -0.01, 3.5], [0.01, 1.002, -2.0], [0.0, 0.0, 1.0]],  # a camera's similarity
+    [[0.98, 0.03, 12.0], [-0.02, 1.01, 4.0], [2e-5, -1e-5, 1.0]],  # a tilted camera's homography
+])
+def test_apply_homography_maps_points_of_any_shape(matrix):
+    m = np.asarray(matrix)
+    rng = np.random.default_rng(1)
+    xy = rng.uniform(-50, 1300, (4, 7, 2))
+    w = xy[..., 0] * m[2, 0] + xy[..., 1] * m[2, 1] + m[2, 2]
+    want = np.stack([(xy[..., 0] * m[0, 0] + xy[..., 1] * m[0, 1] + m[0, 2]) / w,
+                     (xy[..., 0] * m[1, 0] + xy[..., 1] * m[1, 1] + m[1, 2]) / w], axis=-1)
+    got = g.apply_homography(m, xy)
+    assert got.shape == xy.shape
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(g.apply_homography(m, xy[0, 0]), want[0, 0], rtol=0, atol=1e-9)
+    assert g.apply_homography(m, np.zeros((0, 2))).shape == (0, 2)
+    assert g.apply_homography(m, xy[:, ::2]).shape == (4, 4, 2)  # a strided view
