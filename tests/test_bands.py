@@ -80,3 +80,15 @@ def test_to_stacked_inverts_to_full_inside_the_bands():
     assert np.allclose(bands.to_full(bands.to_stacked(full)), full)
     # between bands: the separator row after the band above
     assert np.allclose(bands.to_stacked([[0.0, 7.0]]), [[0.0, 3.0]])
+
+
+def test_outlines_map_to_the_stacked_image_as_their_points_do():
+    # outlines inside one band, across two, between bands, above the first and below the last
+    bands = RowBands([[10, 60], [100, 160], [200, 260]], (300, 400))
+    rng = np.random.default_rng(0)
+    for _ in range(500):
+        k, n = int(rng.integers(1, 6)), int(rng.integers(1, 10))
+        spread = rng.choice([2.0, 30.0, 100.0]) * rng.uniform(0, 1, (k, 1, 1))
+        outlines = rng.uniform(-20, 320, (k, 1, 2)) + rng.uniform(-1, 1, (k, n, 2)) * spread
+        want = bands.to_stacked(outlines.reshape(-1, 2)).reshape(outlines.shape)
+        np.testing.assert_array_equal(bands.to_stacked_outlines(outlines), want)

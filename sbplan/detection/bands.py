@@ -134,6 +134,25 @@ class RowBands:
             xy[beyond, 1] = (self.offsets + self.stops - self.starts)[band[beyond]]
         return xy
 
+    def to_stacked_outlines(self, outlines: np.ndarray) -> np.ndarray:
+        """:meth:`to_stacked` of outlines ``(K, N, 2)``, the same values: an outline whose points
+        all lie in one band moves by that band's shift as a whole (a few calls on K values where
+        :meth:`to_stacked` searches K x N); any other goes point by point."""
+        xy = np.array(outlines, dtype=np.float64)
+        if not xy.size:
+            return xy
+        y = xy[..., 1]
+        top = np.floor(y.min(axis=1) + 0.5)
+        band = np.clip(np.searchsorted(self.starts, top, side="right") - 1, 0, None)
+        last = np.clip(np.searchsorted(self.starts, np.floor(y.max(axis=1) + 0.5), side="right") - 1, 0, None)
+        shift = (self.starts - self.offsets)[band]
+        whole = (band == last) & (y.max(axis=1) - shift <= (self.offsets + self.stops - self.starts)[band])
+        y -= shift[:, None]
+        if not whole.all():
+            split = ~whole
+            xy[split] = self.to_stacked(np.asarray(outlines, np.float64)[split].reshape(-1, 2)).reshape(xy[split].shape)
+        return xy
+
     def __repr__(self) -> str:
         bands = ", ".join(f"{a}:{b}" for a, b in zip(self.starts.tolist(), self.stops.tolist()))
         return f"RowBands([{bands}] of {self.shape[0]} rows, {self.fraction:.0%})"

@@ -435,7 +435,8 @@ class Detector:
                 # the checked outlines' samples are rows of the descriptors' (resample_complex
                 # remembers them with the batch), so no batch of the checked outlines is made
                 z = resample_complex(polygons, SAMPLES)[picked]
-                xy = np.stack([z.real, z.imag], axis=-1).reshape(-1, 2)
+                # (complex samples viewed as their (x, y) pairs: no copy)
+                xy = z.view(np.float64).reshape(-1, 2)
                 if bands is not None:
                     xy = bands.to_full(xy)
                 if origin is not None:
@@ -457,14 +458,12 @@ class Detector:
                     cell = flat[idx]
                     points, inward = self.ref_points[cell], self.inward[cell]
                     if moved:
-                        points = motion.to_frame(points)
-                        lin = motion.matrix[:2, :2] / motion.scale
-                        inward = inward @ lin.T
+                        points, inward = motion.to_frame(points), motion.turn(inward)
                     points = work.to_work(points)
                     if origin is not None:
                         points = points - origin
                     if bands is not None:
-                        points = bands.to_stacked(points.reshape(-1, 2)).reshape(points.shape)
+                        points = bands.to_stacked_outlines(points)
                     # the binary image and the outlines are in working pixels
                     hidden = hidden_piece(_Picked(polygons, picked), shift / work.factor, points, inward,
                                           self.allowance[cell] * (motion.scale / work.factor), binary)
@@ -582,7 +581,6 @@ class Detector:
         reaches, reduced and binarized (the frame's ink with the scratches painted over), with its
         outline's common shift taken out. (At the frame's resolution the binarizer's ink, fatter
         than the halfway threshold's, let an object over 6 % of a flag's tip pass.)"""
-        lin = motion.matrix[:2, :2] / motion.scale
         work, f = self.work, self.work.factor
         wh, ww = work.work_shape
         # how far (working pixels) the binarizer's mask looks, and the crop alignment it needs;
@@ -593,7 +591,7 @@ class Detector:
             cell = int(cells[i])
             points, inward = self.ref_points[cell], self.inward[cell]
             if motion.moved:
-                points, inward = motion.to_frame(points), inward @ lin.T
+                points, inward = motion.to_frame(points), motion.turn(inward)
             if f == 1:
                 return repaired_piece_hidden(repaired, origin, points, inward,
                                              self.allowance[cell] * motion.scale, level)

@@ -163,6 +163,16 @@ class CameraMotion:
         """This frame's pixels ``(..., 2)`` -> calibration pixels."""
         return apply(self._inverse, xy)
 
+    def turn(self, vectors: np.ndarray) -> np.ndarray:
+        """Directions ``(..., 2)`` in the calibration's pixels turned as this movement turns them
+        (its linear part less the scale; at the image's centre for a homography)."""
+        turning = self.__dict__.get("_turning")
+        if turning is None:
+            turning = np.eye(3)
+            turning[:2, :2] = self.matrix[:2, :2] / self.scale
+            object.__setattr__(self, "_turning", turning)
+        return apply(turning, vectors)
+
     @property
     def _inverse(self) -> np.ndarray:
         inv = self.__dict__.get("_inv")
