@@ -173,6 +173,7 @@ class Detector:
             # (outlines traced in a reduced image lie up to a reduced pixel inside the ink's edge:
             # the probes reach as much farther)
             self._edge_x, self._edge_y = edge_probes(cal.symbol_polygons, EDGE_DEPTH_PX * cal.work_scale)
+            self._edge_xy = np.stack([self._edge_x, self._edge_y], axis=-1).astype(np.float64)
             self._edge_factors = edge_factors(cal.edge_contrast)
             # how many edge points in a row a scratch may break, per cell (its points' spacing)
             self._scratch_points, self._break_gap = scratch_points(cal.symbol_polygons)
@@ -547,11 +548,10 @@ class Detector:
 
     def _probes(self, cells: np.ndarray, motion: CameraMotion) -> tuple[np.ndarray, np.ndarray]:
         """The edge probes ``(x, y)`` of ``cells`` (flat indices) where ``motion`` puts them, (n, EDGE_SAMPLES) each."""
-        ex, ey = self._edge_x[cells], self._edge_y[cells]  # type: ignore[index]
         if motion.moved:
-            q = motion.to_frame(np.stack([ex, ey], axis=-1))
-            ex, ey = q[..., 0].astype(np.float32), q[..., 1].astype(np.float32)
-        return ex, ey
+            q = motion.to_frame(self._edge_xy[cells])
+            return q[..., 0].astype(np.float32), q[..., 1].astype(np.float32)
+        return self._edge_x[cells], self._edge_y[cells]  # type: ignore[index]
 
     def _cell_detection(self, last: "_LastCells", whole: np.ndarray, timings: dict[str, float],
                         motion: CameraMotion) -> CellDetection:

@@ -36,6 +36,7 @@ calibration pixels to frame pixels.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 from dataclasses import dataclass
@@ -153,7 +154,12 @@ class CameraMotion:
     @property
     def moved(self) -> bool:
         """True unless the transform is exactly the identity."""
-        return not np.array_equal(self.matrix, np.eye(3))
+        moved = self.__dict__.get("_moved")
+        if moved is None:
+            # (asked a dozen times per frame: np.array_equal costs microseconds each time)
+            moved = not np.array_equal(self.matrix, np.eye(3))
+            object.__setattr__(self, "_moved", moved)
+        return moved
 
     def to_frame(self, xy: np.ndarray) -> np.ndarray:
         """Calibration pixels ``(..., 2)`` -> this frame's pixels."""
@@ -568,7 +574,7 @@ def _few_symbols(found: np.ndarray, cells: np.ndarray, hint: np.ndarray, image_s
             motion = _motion(hint, rms, len(found), "assumed", image_shape, None, pitch, False)
             warning = (f"only {len(found)} symbol{'s' if len(found) != 1 else ''} visible: the floor is mostly "
                        f"covered; the camera is assumed not to have moved since the last estimate")
-            return CameraMotion(**{**motion.__dict__, "warning": warning})
+            return dataclasses.replace(motion, warning=warning)
     if n_found >= MIN_SYMBOLS:
         raise CameraMotionError(
             f"camera moved since calibration: {n_found} symbols found but only {len(found)} near a cell of the "
