@@ -212,10 +212,10 @@ def test_cli_update_writes_only_when_it_succeeds(tmp_path, calibration):
 
 def test_old_calibration_files_without_registration_data_still_detect(calibration):
     data = calibration.to_json()
-    for key in ("registration_centres_px", "reference_thumbnail_png"):
+    for key in ("registration_centres_px", "reference_thumbnail_png", "holes"):
         del data["symbol"][key]
     old = Calibration.from_json(data)
-    assert old.registration_centres_px is None and old.reference_thumbnail is None
+    assert old.registration_centres_px is None and old.reference_thumbnail is None and old.symbol_holes is None
     image, truth = _scene(motion=(2.0, 1.0, 0.1, 1.0))
     cells = Detector(old).find_cells(image)
     assert score_cells(cells.occupied, truth.cells).f1 == 1.0

@@ -525,11 +525,14 @@ class Detector:
             if len(need):
                 ex, ey = self._probes(need, motion)
                 outlines = [cal.symbol_polygons[c] for c in need]
+                holes = None if cal.symbol_holes is None else [cal.symbol_holes[c] for c in need]
                 if motion.moved:
                     outlines = [motion.to_frame(o) for o in outlines]
+                    if holes is not None:
+                        holes = [[motion.to_frame(h) for h in hs] for hs in holes]
                 last.repaired[need] = scratches_repaired(gray, outlines, ex, ey, self._edge_factors[need],
                                                          max_break=self._scratch_points[need],
-                                                         gap=self._break_gap[need],
+                                                         gap=self._break_gap[need], holes=holes,
                                                          piece_hidden=self._piece_hidden(need, motion, gray))
             rescued = rescued | (last.broken & (last.repaired == 1))
         matched_count = int(last.found.sum())

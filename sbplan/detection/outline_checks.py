@@ -437,7 +437,7 @@ _SQUARE_7 = np.ones((7, 7), np.uint8)
 
 def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarray, y: np.ndarray,
                        factors: np.ndarray, *, max_break: int | np.ndarray = 0,
-                       gap: int | np.ndarray = 3,
+                       gap: int | np.ndarray = 3, holes: list[list[np.ndarray]] | None = None,
                        piece_hidden: Callable[[int, np.ndarray, tuple[int, int], float], bool] | None = None
                        ) -> np.ndarray:
     """:func:`edges_intact` after the thin scratches across each symbol are painted over.
@@ -459,6 +459,11 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
     outlines : list of ndarray (K, 2)
         Each symbol's reference outline ``(x, y)`` where the frame shows it.
     x, y, factors : as :func:`edges_intact`, for the same outlines.
+    holes : list of list of ndarray (K, 2), optional
+        Each symbol's holes ``(x, y)`` where the frame shows them (the reference's, as the
+        calibration keeps them): floor of the symbol's own, never a scratch. A hole too thin for the
+        grey opening (a letter A's small triangle) is a thin bright feature inside the ink, as a
+        scratch is; without the reference's holes the repair finds only the wide ones.
     piece_hidden : callable, optional
         ``piece_hidden(i, repaired, (x0, y0), level)`` for each symbol whose edge shows all around
         once repaired: ``repaired`` is the window (uint8) with the scratches painted over, ``(x0,
@@ -493,14 +498,19 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
         thin = (cv2.subtract(patch, opened) > SCRATCH_LEVEL * step).astype(np.uint8)
         inside = np.zeros_like(thin)
         cv2.fillPoly(inside, [np.rint((outline - (x0, y0)) * 16).astype(np.int32)], 1, cv2.LINE_8, shift=4)
+        if holes is not None and holes[i]:
+            # (the hole's polygon runs through the ink's pixels around it: the ink's rim there, half
+            # a pixel of antialiasing, goes with the hole)
+            cv2.fillPoly(inside, [np.rint((h - (x0, y0)) * 16).astype(np.int32) for h in holes[i]], 0,
+                         cv2.LINE_8, shift=4)
         core = cv2.erode(inside, deep)
         if not ((core > 0) & (thin > 0)).any():
             continue
         # (the holes, only for a symbol a thin line reaches into: without them its interior is
         # larger, so one that no line reaches stays so)
-        holes = _holes(opened, inside, float(median(v[0])) + step / 2)
-        if holes.any():
-            inside &= 1 - holes
+        wide = _holes(opened, inside, float(median(v[0])) + step / 2)
+        if wide.any():
+            inside &= 1 - wide
             core = cv2.erode(inside, deep)
             if not ((core > 0) & (thin > 0)).any():
                 continue

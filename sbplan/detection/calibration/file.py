@@ -52,6 +52,11 @@ class Calibration:
     grid : Grid
     symbol_polygons : list of ndarray (K, 2)
         The approximated outline of every cell's symbol in the reference, row-major.
+    symbol_holes : list of list of ndarray (K, 2), or None
+        The holes in every cell's symbol in the reference (a letter A's triangle, a P's counter),
+        row-major like ``symbol_polygons``: floor that belongs to the symbol, which the scratch
+        repair must not take for a scratch. None in files written before it existed (the repair
+        then finds holes in the frame alone).
     other_polygons : list of ndarray (K, 2)
         A sample of the reference's contours that are not symbols (for re-deriving thresholds).
     degraded_polygons : list of ndarray (K, 2)
@@ -106,6 +111,7 @@ class Calibration:
     registration_centres_px: np.ndarray | None = None
     reference_thumbnail: np.ndarray | None = None
     work_scale: int = 1
+    symbol_holes: list[list[np.ndarray]] | None = None
     workspace: Workspace = field(default_factory=Workspace)
     stats: dict[str, Any] = field(default_factory=dict)
 
@@ -188,6 +194,8 @@ class Calibration:
         return replace(
             self, grid=moved_grid,
             symbol_polygons=[apply(matrix, p) for p in self.symbol_polygons],
+            symbol_holes=(None if self.symbol_holes is None
+                          else [[apply(matrix, h) for h in holes] for holes in self.symbol_holes]),
             other_polygons=[apply(matrix, p) for p in self.other_polygons],
             degraded_polygons=[apply(matrix, p) for p in self.degraded_polygons],
             registration_centres_px=(None if self.registration_centres_px is None
@@ -225,6 +233,8 @@ class Calibration:
                 **({} if self.reference_thumbnail is None else
                    {"reference_thumbnail_png": _png_base64(self.reference_thumbnail)}),
                 "polygons": [np.round(p, 3).tolist() for p in self.symbol_polygons],
+                **({} if self.symbol_holes is None else
+                   {"holes": [[np.round(h, 3).tolist() for h in holes] for holes in self.symbol_holes]}),
             },
             "other_polygons": [np.round(p, 3).tolist() for p in self.other_polygons],
             "degraded_polygons": [np.round(p, 3).tolist() for p in self.degraded_polygons],
@@ -266,6 +276,13 @@ class Calibration:
         if len(polygons) != n_cells:
             raise CalibrationFileError(f"{source}: symbol.polygons: {len(polygons)} outlines for a grid of "
                                        f"{rows} x {cols} = {n_cells} cells")
+        holes = None
+        if "holes" in sym:
+            if not isinstance(sym["holes"], list) or len(sym["holes"]) != n_cells:
+                raise CalibrationFileError(f"{source}: symbol.holes: expected a list of holes for each of the "
+                                           f"{n_cells} cells")
+            holes = [f.polygons({"holes": cell}, "holes", field=f"symbol.holes[{i}]")
+                     for i, cell in enumerate(sym["holes"])]
         descriptor = f.array(sym, "descriptor", (None,), field="symbol.descriptor")
         if not len(descriptor):
             raise CalibrationFileError(f"{source}: symbol.descriptor: is empty")
@@ -296,6 +313,7 @@ class Calibration:
             work_scale=_work_scale(data.get("work_scale", 1), source),
             grid=grid,
             symbol_polygons=polygons,
+            symbol_holes=holes,
             other_polygons=f.polygons(data, "other_polygons"),
             degraded_polygons=f.polygons(data, "degraded_polygons"),
             descriptor=descriptor,
