@@ -82,7 +82,7 @@ def test_to_stacked_inverts_to_full_inside_the_bands():
     assert np.allclose(bands.to_stacked([[0.0, 7.0]]), [[0.0, 3.0]])
 
 
-def test_outlines_map_to_the_stacked_image_as_their_points_do():
+def test_outlines_map_to_and_from_the_stacked_image_as_their_points_do():
     # outlines inside one band, across two, between bands, above the first and below the last
     bands = RowBands([[10, 60], [100, 160], [200, 260]], (300, 400))
     rng = np.random.default_rng(0)
@@ -92,3 +92,6 @@ def test_outlines_map_to_the_stacked_image_as_their_points_do():
         outlines = rng.uniform(-20, 320, (k, 1, 2)) + rng.uniform(-1, 1, (k, n, 2)) * spread
         want = bands.to_stacked(outlines.reshape(-1, 2)).reshape(outlines.shape)
         np.testing.assert_array_equal(bands.to_stacked_outlines(outlines), want)
+        stacked = outlines * [1.0, 0.6]  # (the stacked image is 183 rows high)
+        want = bands.to_full(stacked.reshape(-1, 2)).reshape(stacked.shape)
+        np.testing.assert_array_equal(bands.to_full_outlines(stacked), want)

@@ -134,6 +134,25 @@ class RowBands:
             xy[beyond, 1] = (self.offsets + self.stops - self.starts)[band[beyond]]
         return xy
 
+    def to_full_outlines(self, outlines: np.ndarray) -> np.ndarray:
+        """:meth:`to_full` of outlines ``(K, N, 2)``, the same values: an outline whose rows all
+        lie in one band (every outline traced in the stacked image) moves by that band's shift as
+        a whole; any other goes point by point."""
+        xy = np.array(outlines, dtype=np.float64)
+        if not xy.size:
+            return xy
+        y = xy[..., 1]
+        last = len(self._shift) - 1
+        # (a point's row is monotonic in y, and the shift is monotonic in the row: an outline
+        # whose top and bottom rows move alike moves alike everywhere)
+        top = self._shift[np.minimum(np.maximum(np.floor(y.min(axis=1) + 0.5).astype(np.int64), 0), last)]
+        bottom = self._shift[np.minimum(np.maximum(np.floor(y.max(axis=1) + 0.5).astype(np.int64), 0), last)]
+        y += top[:, None]
+        split = top != bottom
+        if split.any():
+            xy[split] = self.to_full(np.asarray(outlines, np.float64)[split].reshape(-1, 2)).reshape(xy[split].shape)
+        return xy
+
     def to_stacked_outlines(self, outlines: np.ndarray) -> np.ndarray:
         """:meth:`to_stacked` of outlines ``(K, N, 2)``, the same values: an outline whose points
         all lie in one band moves by that band's shift as a whole (a few calls on K values where

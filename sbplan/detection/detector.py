@@ -8,6 +8,7 @@ once (stages, reference descriptors, thresholds), so a stream of frames pays onl
 from __future__ import annotations
 
 import collections.abc
+import functools
 import logging
 import os
 import time
@@ -437,9 +438,9 @@ class Detector:
                 # remembers them with the batch), so no batch of the checked outlines is made
                 z = resample_complex(polygons, SAMPLES)[picked]
                 # (complex samples viewed as their (x, y) pairs: no copy)
-                xy = z.view(np.float64).reshape(-1, 2)
+                xy = z.view(np.float64).reshape(len(picked), SAMPLES, 2)
                 if bands is not None:
-                    xy = bands.to_full(xy)
+                    xy = bands.to_full_outlines(xy)
                 if origin is not None:
                     xy = xy + origin
                 xy = work.to_frame(xy)
@@ -703,7 +704,7 @@ class Detector:
         if len(take) > REGISTRATION_SYMBOLS:
             # evenly over the grid's cells: a spread-out set pins rotation and scale
             take = take[np.argsort(cells[take], kind="stable")]
-            take = take[np.linspace(0, len(take) - 1, REGISTRATION_SYMBOLS).round().astype(np.int64)]
+            take = take[_evenly(len(take), REGISTRATION_SYMBOLS)]
         # sub-pixel centres, measured in the working image as calibration measured the reference's
         boxes = self._boxes(polygons, hit[take], work_centres[take], bands)
         fine = self.work.to_frame(grey_centres(image, boxes, self._centre_window))
@@ -778,6 +779,14 @@ class Detector:
 #: A cell whose symbol the camera's movement put partly out of the frame is judged by the edge
 #: points in view when at least this share of them is (else it stays occupied: unseen is not free).
 IN_VIEW_SHARE = 0.5
+
+
+@functools.lru_cache(maxsize=64)
+def _evenly(n: int, k: int) -> np.ndarray:
+    """``k`` indices spread evenly over ``0 .. n - 1`` (both ends included), read-only."""
+    out = np.linspace(0, n - 1, k).round().astype(np.int64)
+    out.flags.writeable = False
+    return out
 
 
 def _out_of_view(x: np.ndarray, y: np.ndarray, shape: tuple[int, int]) -> np.ndarray | None:
