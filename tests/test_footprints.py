@@ -363,3 +363,24 @@ def test_the_support_test_keeps_the_pieces_that_changed():
     assert np.array_equal(got, want)
     kept = [got[46 + k, 104 if k % 2 else 56] for k in range(28)]
     assert any(kept) and not all(kept), kept
+
+
+def test_the_cut_search_clips_all_positions_at_once_as_one_at_a_time(monkeypatch):
+    # the cut search clips an outline at its 15 positions in one call to shapely's ufunc; with
+    # the scalar wrapper one position at a time (where the ufunc is not there) the parts are the
+    # same, point for point
+    from sbplan.detection import obstacles
+
+    rng = np.random.default_rng(3)
+    outlines = [np.array([[0, 0], [10, 0], [10, 2], [2, 2], [2, 9], [0, 9]], float),  # an L
+                np.array([[0, 0], [4, 0], [4, 4], [8, 4], [8, 8], [4, 8], [4, 4], [0, 4]], float)]  # corners touching
+    for _ in range(6):  # star-shaped blobs
+        t = np.sort(rng.uniform(0, 2 * np.pi, 12))
+        r = rng.uniform(1.0, 4.0, 12)
+        outlines.append(np.c_[r * np.cos(t), r * np.sin(t)])
+    fast = [split_parts(o) for o in outlines]
+    assert any(len(p) > 1 for p in fast)
+    monkeypatch.setattr(obstacles, "_CLIP_UFUNC", None)
+    slow = [split_parts(o) for o in outlines]
+    for a, b in zip(fast, slow):
+        assert len(a) == len(b) and all(np.array_equal(x, y) for x, y in zip(a, b))

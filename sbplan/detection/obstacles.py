@@ -343,7 +343,66 @@ def _area(rect: np.ndarray) -> float:
 def _piece_mar_area(piece: Polygon) -> float:
     """The area of the MAR of a piece's exterior (mar_opencv's rectangle, without its input
     checks: the cut search's own polygons)."""
-    return _area(_box_points(shapely.get_coordinates(piece.exterior)[:-1].astype(np.float32)))
+    return _mar_area(shapely.get_coordinates(piece.exterior)[:-1])
+
+
+def _mar_area(ring: np.ndarray) -> float:
+    """The area of the MAR of a closed ring's points (K, 2), the closing point left out."""
+    return _area(_box_points(ring.astype(np.float32)))
+
+
+#: shapely's clip_by_rect ufunc (its compiled module's), which broadcasts the bounds; None where
+#: a shapely version does not have it
+_CLIP_UFUNC = getattr(getattr(shapely, "lib", None), "clip_by_rect", None)
+
+
+def _clip_all(q: Polygon, xmin, ymin, xmax, ymax) -> np.ndarray:
+    """``shapely.clip_by_rect`` of ``q`` by every rectangle the bounds give (one of them an array,
+    the others numbers): an array of geometries. Shapely's ufunc takes arrays of bounds in one
+    call (the cut search makes 30 clips per direction: 3 us each that way, 6 through the scalar
+    wrapper, whose own checks refuse arrays, shapely issue #1331); the wrapper per rectangle where
+    the ufunc is not there."""
+    if _CLIP_UFUNC is not None:
+        try:
+            return np.asarray(_CLIP_UFUNC(q, xmin, ymin, xmax, ymax), dtype=object)
+        except TypeError:
+            pass
+    bounds = np.broadcast_arrays(*(np.asarray(v, np.float64) for v in (xmin, ymin, xmax, ymax)))
+    return np.array([shapely.clip_by_rect(q, *map(float, b)) for b in zip(*bounds)] + [None], dtype=object)[:-1]
+
+
+def _cuts(q: Polygon, ts: np.ndarray, pad: float) -> list[tuple[list[Polygon], float]]:
+    """Every vertical cut of ``q`` at the abscissas ``ts``: its pieces of non-zero area (the left
+    side's, then the right side's, each in the order their collection lists them) and the sum of
+    their MARs' areas, in that order. The same pieces and sums as clipping, listing and measuring
+    one cut at a time, for a few shapely calls per direction instead of a few per piece."""
+    x0, y0, x1, y1 = q.bounds
+    n = len(ts)
+    sides = np.concatenate([_clip_all(q, x0 - pad, y0 - pad, ts, y1 + pad),
+                            _clip_all(q, ts, y0 - pad, x1 + pad, y1 + pad)])
+    parts, owner = shapely.get_parts(sides, return_index=True)
+    keep = (shapely.get_type_id(parts) == shapely.GeometryType.POLYGON) & (shapely.area(parts) > 0)
+    parts, owner = parts[keep], owner[keep]
+    coords, ring = shapely.get_coordinates(shapely.get_exterior_ring(parts), return_index=True)
+    ends = np.searchsorted(ring, np.arange(1, len(parts) + 1))
+    starts = np.r_[0, ends[:-1]]
+    # each piece's MAR (its ring's points less the closing one), and their areas in one go: the
+    # shoelace over 4 corners sums in the order _area does, so the areas are _mar_area's
+    points = coords.astype(np.float32)
+    boxes = np.array([cv2.boxPoints(cv2.minAreaRect(points[a:b - 1]))
+                      for a, b in zip(starts.tolist(), ends.tolist())], np.float64).reshape(-1, 4, 2)
+    x, y = boxes[..., 0], boxes[..., 1]
+    areas = (0.5 * np.abs((x * np.roll(y, -1, axis=1) - y * np.roll(x, -1, axis=1)).sum(axis=1))).tolist()
+    # the pieces of cut k: those of side k (left), then of side n + k (right); get_parts keeps
+    # the sides' order
+    by_side: list[list[int]] = [[] for _ in range(2 * n)]
+    for i, side in enumerate(owner.tolist()):
+        by_side[side].append(i)
+    out = []
+    for k in range(n):
+        idx = by_side[k] + by_side[n + k]
+        out.append(([parts[i] for i in idx], sum(areas[i] for i in idx)))
+    return out
 
 
 def _best_cut(p: Polygon, rect: np.ndarray) -> list[Polygon] | None:
@@ -359,13 +418,9 @@ def _best_cut(p: Polygon, rect: np.ndarray) -> list[Polygon] | None:
             q = shapely.affinity.rotate(p, -turn, origin=(0, 0))
             x0, y0, x1, y1 = q.bounds
             pad = 1.0 + (x1 - x0) + (y1 - y0)
-            for t in np.linspace(x0, x1, PARTS_CUTS + 2)[1:-1]:
-                left = shapely.clip_by_rect(q, x0 - pad, y0 - pad, t, y1 + pad)
-                right = shapely.clip_by_rect(q, t, y0 - pad, x1 + pad, y1 + pad)
-                pieces = [g for g in _polygons(left) + _polygons(right) if g.area > 0]
+            for pieces, cost in _cuts(q, np.linspace(x0, x1, PARTS_CUTS + 2)[1:-1], pad):
                 if len(pieces) < 2:
                     continue
-                cost = sum(_piece_mar_area(g) for g in pieces)
                 if cost < best_cost * (1 - 1e-9):
                     best, best_cost, best_angle = pieces, cost, turn
         if best is not None and best_cost <= PARTS_RATIO * p.area:
