@@ -504,8 +504,12 @@ def apply_homography(matrix: np.ndarray, xy: np.ndarray) -> np.ndarray:
         # OpenCV's point transforms: 3 us for a frame's few thousand outline points, where numpy's
         # (N, 2) @ (2, 2) product takes 35 (the same values to 1e-13 px)
         pts = xy.reshape(-1, 1, 2)
-        out = cv2.perspectiveTransform(pts, matrix) if projective else cv2.transform(pts, matrix[:2])
-        return out.reshape(xy.shape)
+        if not projective:
+            return cv2.transform(pts, matrix[:2]).reshape(xy.shape)
+        # (x w, y w, w), divided here: cv2.perspectiveTransform gives (0, 0) where w is near zero
+        # or the point is NaN, where the division gives inf or NaN as the plain arithmetic does
+        t = cv2.transform(pts, matrix).reshape(-1, 3)
+        return (t[:, :2] / t[:, 2:]).reshape(xy.shape)
     out = xy @ matrix[:2, :2].T + matrix[:2, 2]
     if projective:
         w = xy @ matrix[2, :2] + matrix[2, 2]

@@ -95,3 +95,9 @@ def test_outlines_map_to_and_from_the_stacked_image_as_their_points_do():
         stacked = outlines * [1.0, 0.6]  # (the stacked image is 183 rows high)
         want = bands.to_full(stacked.reshape(-1, 2)).reshape(stacked.shape)
         np.testing.assert_array_equal(bands.to_full_outlines(stacked), want)
+    # an outline with a point that is not finite, and points that are not (K, N, 2)
+    odd = np.array([[[5.0, 20.0], [np.nan, 70.0], [6.0, 120.0]], [[1.0, 30.0], [2.0, 31.0], [3.0, 32.0]]])
+    np.testing.assert_array_equal(bands.to_full_outlines(odd), bands.to_full(odd.reshape(-1, 2)).reshape(odd.shape))
+    np.testing.assert_array_equal(bands.to_stacked_outlines(odd), bands.to_stacked(odd.reshape(-1, 2)).reshape(odd.shape))
+    flat = odd[1]
+    np.testing.assert_array_equal(bands.to_full_outlines(flat), bands.to_full(flat))

@@ -165,4 +165,14 @@ def test_apply_homography_maps_points_of_any_shape(matrix):
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-9)
     np.testing.assert_allclose(g.apply_homography(m, xy[0, 0]), want[0, 0], rtol=0, atol=1e-9)
     assert g.apply_homography(m, np.zeros((0, 2))).shape == (0, 2)
-    assert g.apply_homography(m, xy[:, ::2]).shape == (4, 4, 2)  # a strided view
+    np.testing.assert_allclose(g.apply_homography(m, xy[:, ::2]), want[:, ::2], rtol=0, atol=1e-9)  # a strided view
+
+
+def test_apply_homography_keeps_the_arithmetics_inf_and_nan():
+    # a point on the horizon line of a projective map goes to infinity, a NaN point stays NaN
+    # (OpenCV's perspectiveTransform would give (0, 0) for both)
+    m = np.array([[1.0, 0, 0], [0, 1.0, 0], [1.0, 0, 0]])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = g.apply_homography(m, np.array([[0.0, 1.0], [np.nan, 1.0], [2.0, 3.0]]))
+    assert np.isinf(out[0, 1]) and np.isnan(out[1]).all()
+    np.testing.assert_allclose(out[2], [1.0, 1.5])

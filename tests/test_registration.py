@@ -4,6 +4,7 @@ refuses with CameraMotionError instead of answering."""
 
 from __future__ import annotations
 
+import functools
 import json
 import subprocess
 import sys
@@ -19,7 +20,7 @@ from sbplan.errors import CameraMotionError
 from sbplan.bench.evaluation import score_cells
 from sbplan.detection.registration import CameraMotion, MAX_MOVEMENT_PITCH, apply, register, register_pairs
 from sbplan.synth import FloorSpec, SceneSpec, render_reference, render_scene
-from sbplan.synth.camera import motion_matrix
+from sbplan.synth.camera import motion_matrix, view_change
 
 FLOOR = FloorSpec(width=800, height=600, cols=8, rows=5)
 
@@ -174,6 +175,24 @@ def test_register_leaves_out_partly_hidden_symbols_near_the_last_pose(calibratio
     np.testing.assert_allclose(motion.matrix, true, atol=1e-6)
     assert (cells[::every] == -1).all()
     assert (np.delete(cells, np.s_[::every]) >= 0).all()
+
+
+@pytest.mark.parametrize("sag, n", [((0.6, -0.4), 40), ((0.6, -0.4), 29), ((1.0, -0.8), 32)])
+def test_a_tilted_view_on_a_large_pitch_is_followed_by_a_homography(sag, n):
+    # a 400 px pitch lets the pairs of a tilted view all lie within RANSAC's threshold (8 px) of a
+    # similarity, or all but a few corners: the fit near the last pose must not take the
+    # similarity (residual 2-3 px, refused as "cannot trust the camera's movement")
+    cal = _large_pitch_calibration()
+    view = view_change(cal.image_shape[1], cal.image_shape[0], sag=sag)
+    centres = apply(view, cal.grid.centres_px.reshape(-1, 2))[:n]
+    motion, cells = register_pairs(centres, cal.grid, cal.image_shape)
+    assert motion.model == "homography" and motion.residual_px < 0.1
+    assert (cells >= 0).all()
+
+
+@functools.lru_cache(maxsize=1)
+def _large_pitch_calibration() -> Calibration:
+    return calibrate(render_reference(FloorSpec(width=3200, height=2400, cols=8, rows=5), seed=0))
 
 
 # -- re-anchoring -----------------------------------------------------------------------------------

@@ -139,16 +139,20 @@ class RowBands:
         lie in one band (every outline traced in the stacked image) moves by that band's shift as
         a whole; any other goes point by point."""
         xy = np.array(outlines, dtype=np.float64)
-        if not xy.size:
-            return xy
+        if xy.ndim != 3 or not xy.size:
+            return self.to_full(xy.reshape(-1, 2)).reshape(xy.shape)
         y = xy[..., 1]
         last = len(self._shift) - 1
         # (a point's row is monotonic in y, and the shift is monotonic in the row: an outline
-        # whose top and bottom rows move alike moves alike everywhere)
-        top = self._shift[np.minimum(np.maximum(np.floor(y.min(axis=1) + 0.5).astype(np.int64), 0), last)]
-        bottom = self._shift[np.minimum(np.maximum(np.floor(y.max(axis=1) + 0.5).astype(np.int64), 0), last)]
+        # whose top and bottom rows move alike moves alike everywhere; one with a point that is
+        # not finite goes point by point)
+        lo, hi = y.min(axis=1), y.max(axis=1)
+        finite = np.isfinite(lo) & np.isfinite(hi)
+        lo, hi = np.where(finite, lo, 0.0), np.where(finite, hi, 0.0)
+        top = self._shift[np.minimum(np.maximum(np.floor(lo + 0.5).astype(np.int64), 0), last)]
+        bottom = self._shift[np.minimum(np.maximum(np.floor(hi + 0.5).astype(np.int64), 0), last)]
         y += top[:, None]
-        split = top != bottom
+        split = (top != bottom) | ~finite
         if split.any():
             xy[split] = self.to_full(np.asarray(outlines, np.float64)[split].reshape(-1, 2)).reshape(xy[split].shape)
         return xy
@@ -158,8 +162,8 @@ class RowBands:
         all lie in one band moves by that band's shift as a whole (a few calls on K values where
         :meth:`to_stacked` searches K x N); any other goes point by point."""
         xy = np.array(outlines, dtype=np.float64)
-        if not xy.size:
-            return xy
+        if xy.ndim != 3 or not xy.size:
+            return self.to_stacked(xy.reshape(-1, 2)).reshape(xy.shape)
         y = xy[..., 1]
         top = np.floor(y.min(axis=1) + 0.5)
         band = np.clip(np.searchsorted(self.starts, top, side="right") - 1, 0, None)

@@ -485,6 +485,10 @@ def _agreeing_fit(src: np.ndarray, dst: np.ndarray, hint: np.ndarray, inlier_px:
         keep[np.flatnonzero(agree)[kept]] = True
     if float(np.abs(moved - apply(hint, src)).max()) > FAST_PITCH * pitch:
         return None
+    if model == "similarity" and rms > HOMOGRAPHY_TRY_PX:
+        # no similarity follows these symbols (a camera that tilted): RANSAC's path tries a
+        # homography (a large pitch's threshold lets a tilted view's pairs all "agree")
+        return None
     return matrix, keep, rms, model
 
 
