@@ -13,6 +13,7 @@ import cv2
 import numpy as np
 import pytest
 import shapely
+import shapely.affinity
 from shapely.geometry import LineString, Point, Polygon
 
 import sbplan
@@ -365,7 +366,7 @@ def test_the_support_test_keeps_the_pieces_that_changed():
     assert any(kept) and not all(kept), kept
 
 
-def test_the_cut_search_clips_all_positions_at_once_as_one_at_a_time(monkeypatch):
+def test_the_cut_search_finds_the_parts_the_plain_search_finds(monkeypatch):
     # the cut search clips an outline at its 15 positions in one call to shapely's ufunc; with
     # the scalar wrapper one position at a time (where the ufunc is not there) the parts are the
     # same, point for point
@@ -382,5 +383,36 @@ def test_the_cut_search_clips_all_positions_at_once_as_one_at_a_time(monkeypatch
     assert any(len(p) > 1 for p in fast)
     monkeypatch.setattr(obstacles, "_CLIP_UFUNC", None)
     slow = [split_parts(o) for o in outlines]
-    for a, b in zip(fast, slow):
-        assert len(a) == len(b) and all(np.array_equal(x, y) for x, y in zip(a, b))
+    # ... and both are the plain search: one clip, one list of pieces and one MAR at a time
+    monkeypatch.setattr(obstacles, "_best_cut", _best_cut_one_at_a_time)
+    plain = [split_parts(o) for o in outlines]
+    for a, b, c in zip(fast, slow, plain):
+        assert len(a) == len(b) == len(c)
+        assert all(np.array_equal(x, y) and np.array_equal(x, z) for x, y, z in zip(a, b, c))
+
+
+def _best_cut_one_at_a_time(p, rect):
+    from sbplan.detection import obstacles as o
+
+    e = rect[1] - rect[0]
+    side = float(np.degrees(np.arctan2(e[1], e[0]))) % 90.0
+    best, best_cost, best_angle = None, o._area(rect), 0.0
+    for angle in dict.fromkeys((side, 0.0)):
+        for turn in (angle, angle + 90.0):
+            q = shapely.affinity.rotate(p, -turn, origin=(0, 0))
+            x0, y0, x1, y1 = q.bounds
+            pad = 1.0 + (x1 - x0) + (y1 - y0)
+            for t in np.linspace(x0, x1, o.PARTS_CUTS + 2)[1:-1]:
+                left = shapely.clip_by_rect(q, x0 - pad, y0 - pad, t, y1 + pad)
+                right = shapely.clip_by_rect(q, t, y0 - pad, x1 + pad, y1 + pad)
+                pieces = [g for g in o._polygons(left) + o._polygons(right) if g.area > 0]
+                if len(pieces) < 2:
+                    continue
+                cost = sum(o._piece_mar_area(g) for g in pieces)
+                if cost < best_cost * (1 - 1e-9):
+                    best, best_cost, best_angle = pieces, cost, turn
+        if best is not None and best_cost <= o.PARTS_RATIO * p.area:
+            break
+    if best is None:
+        return None
+    return [shapely.affinity.rotate(g, best_angle, origin=(0, 0)) for g in best]
