@@ -419,6 +419,18 @@ def test_a_worn_empty_floor_of_letters_is_all_free(letter_calibrations, symbol, 
 
 
 
+@pytest.mark.parametrize("seed", [3, 4])
+def test_a_worn_floor_of_letters_with_holes_seen_by_a_moved_camera_is_all_free(letter_calibrations, seed):
+    # the holes kept by the calibration are read where the camera's movement puts them (3 of 40
+    # cells read occupied on each before they were kept)
+    floor = FloorSpec(width=800, height=600, cols=8, rows=5, symbol="letter-a")
+    effects = {"wear": 1.0, "motion": (-5.0, 3.0, 0.3, 1.0)}
+    image, _ = render_scene(floor, SceneSpec(n_obstacles=0, effects=effects), seed=seed)
+    cells = Detector(letter_calibrations["letter-a"]).find_cells(image)
+    assert cells.camera.moved and cells.symbols_rescued > 0
+    assert not cells.occupied.any(), np.argwhere(cells.occupied).tolist()
+
+
 def test_calibration_keeps_each_symbols_holes_and_moves_them_with_the_camera(letter_calibrations, tmp_path):
     cal = letter_calibrations["letter-a"]
     assert cal.symbol_holes is not None and len(cal.symbol_holes) == len(cal.symbol_polygons)
