@@ -431,6 +431,15 @@ def test_a_worn_floor_of_letters_with_holes_seen_by_a_moved_camera_is_all_free(l
     assert not cells.occupied.any(), np.argwhere(cells.occupied).tolist()
 
 
+def test_a_scratch_that_ends_inside_a_zs_stroke_is_wear():
+    # it crosses the top bar and the diagonal from edge to edge and ends in the bottom bar: four
+    # pieces on one straight course, the last one (and a sliver at the bar's corner) crossing no
+    # stroke. Only all-crossing pieces counted as one line, and the free Z read occupied.
+    reference, image, truth = list(condition_scenes("worn", scenes=3, seed=0, symbol="letter-z"))[2]
+    assert truth.cells[4, 0] == 0
+    assert not Detector(calibrate(reference)).find_cells(image).occupied[4, 0]
+
+
 def test_calibration_keeps_each_symbols_holes_and_moves_them_with_the_camera(letter_calibrations, tmp_path):
     cal = letter_calibrations["letter-a"]
     assert cal.symbol_holes is not None and len(cal.symbol_holes) == len(cal.symbol_polygons)

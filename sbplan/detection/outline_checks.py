@@ -693,9 +693,12 @@ def _scratch_like(patch: np.ndarray, thin: np.ndarray, inside: np.ndarray, level
     if np.count_nonzero(crossing) > 1 and not _straight_length(crossing[labels]) > 0:
         crossing[:] = False
     # (one straight scratch across a symbol of several strokes, a Z or a comb, leaves a piece in
-    # each stroke, from edge to edge: such pieces along one straight course are one line; a
-    # striped object's stripes in line with a scratch end inside the ink)
-    if len(lines) > SCRATCH_MAX_LINES and not (crossing[big].all() and _straight_length(pieces) > 0):
+    # each stroke, from edge to edge: such pieces along one straight course are one line, two of
+    # them across strokes at least; a scratch may end inside a stroke, and leave a sliver at a
+    # corner where strokes meet, pieces that cross nothing; a striped object's stripes lie side by
+    # side, on no one course)
+    if len(lines) > SCRATCH_MAX_LINES and not (np.count_nonzero(crossing[big]) >= 2
+                                               and _straight_length(pieces) > 0):
         return False
     # A scratch that runs on along the edge shows a short line inside the ink only, and one that
     # passes close to the edge is left in pieces: short lines must lie along one straight course
