@@ -551,6 +551,14 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
         paint = (scratch | (beside & (patch > halfway))) & (inside > 0)
         repaired[paint] = np.uint8(np.clip(ink, 0, 255))
         kept = edge_kept(repaired, x[i:i + 1] - x0, y[i:i + 1] - y0, factors[i:i + 1])
+        # A scratch is floor on the floor: it breaks the edge from inside, where the paint heals
+        # it. An edge point still broken where the floor outside reads darker than halfway to the
+        # ink has something dark standing beside the symbol there: an object's dark stripe.
+        dark_beside = ~kept[0] & (factors[i] < EDGE_UNPROBED) & (v[1] < float(median(v[1])) - step / 2)
+        # (two neighbouring points at least: a stripe is a few pixels wide, and beside an acute
+        # tip a single probe outside reads the tip's blurred ink)
+        if (dark_beside & np.roll(dark_beside, 1)).any():
+            continue
         limit = np.broadcast_to(np.asarray(max_break), (len(outlines),))[i:i + 1]
         gaps = np.broadcast_to(np.asarray(gap), (len(outlines),))[i:i + 1]
         out[i] = intact_edges(kept, max_break=limit, gap=gaps, probed=factors[i:i + 1] < EDGE_UNPROBED)[0]
