@@ -408,7 +408,7 @@ def _best_cut_one_at_a_time(p, rect):
                 pieces = [g for g in o._polygons(left) + o._polygons(right) if g.area > 0]
                 if len(pieces) < 2:
                     continue
-                cost = sum(o._piece_mar_area(g) for g in pieces)
+                cost = sum(o._area(o.mar_opencv(shapely.get_coordinates(g.exterior)[:-1])) for g in pieces)
                 if cost < best_cost * (1 - 1e-9):
                     best, best_cost, best_angle = pieces, cost, turn
         if best is not None and best_cost <= o.PARTS_RATIO * p.area:

@@ -340,17 +340,6 @@ def _area(rect: np.ndarray) -> float:
     return 0.5 * abs(total)
 
 
-def _piece_mar_area(piece: Polygon) -> float:
-    """The area of the MAR of a piece's exterior (mar_opencv's rectangle, without its input
-    checks: the cut search's own polygons)."""
-    return _mar_area(shapely.get_coordinates(piece.exterior)[:-1])
-
-
-def _mar_area(ring: np.ndarray) -> float:
-    """The area of the MAR of a closed ring's points (K, 2), the closing point left out."""
-    return _area(_box_points(ring.astype(np.float32)))
-
-
 #: shapely's clip_by_rect ufunc (its compiled module's), which broadcasts the bounds; None where
 #: a shapely version does not have it
 _CLIP_UFUNC = getattr(getattr(shapely, "lib", None), "clip_by_rect", None)
@@ -368,15 +357,21 @@ def _clip_all(q: Polygon, xmin, ymin, xmax, ymax) -> np.ndarray:
         except TypeError:
             pass
     bounds = np.broadcast_arrays(*(np.asarray(v, np.float64) for v in (xmin, ymin, xmax, ymax)))
-    return np.array([shapely.clip_by_rect(q, *map(float, b)) for b in zip(*bounds)] + [None], dtype=object)[:-1]
+    out = np.empty(bounds[0].shape, dtype=object)
+    for k, b in enumerate(zip(*bounds)):
+        out[k] = shapely.clip_by_rect(q, *map(float, b))
+    return out
 
 
-def _cuts(q: Polygon, ts: np.ndarray, pad: float) -> list[tuple[list[Polygon], float]]:
-    """Every vertical cut of ``q`` at the abscissas ``ts``: its pieces of non-zero area (the left
-    side's, then the right side's, each in the order their collection lists them) and the sum of
-    their MARs' areas, in that order. The same pieces and sums as clipping, listing and measuring
-    one cut at a time, for a few shapely calls per direction instead of a few per piece."""
+def _cuts(q: Polygon) -> list[tuple[list[Polygon], float]]:
+    """Every vertical cut of ``q`` at :data:`PARTS_CUTS` abscissas equally spaced across it (ends
+    excluded): its pieces of non-zero area (the left side's, then the right side's, each in the
+    order their collection lists them) and the sum of their MARs' areas (:func:`mar_opencv`'s
+    rectangles, :func:`_area`'s shoelace), in that order. A few shapely calls per direction, not a
+    few per piece."""
     x0, y0, x1, y1 = q.bounds
+    pad = 1.0 + (x1 - x0) + (y1 - y0)
+    ts = np.linspace(x0, x1, PARTS_CUTS + 2)[1:-1]
     n = len(ts)
     sides = np.concatenate([_clip_all(q, x0 - pad, y0 - pad, ts, y1 + pad),
                             _clip_all(q, ts, y0 - pad, x1 + pad, y1 + pad)])
@@ -387,7 +382,7 @@ def _cuts(q: Polygon, ts: np.ndarray, pad: float) -> list[tuple[list[Polygon], f
     ends = np.searchsorted(ring, np.arange(1, len(parts) + 1))
     starts = np.r_[0, ends[:-1]]
     # each piece's MAR (its ring's points less the closing one), and their areas in one go: the
-    # shoelace over 4 corners sums in the order _area does, so the areas are _mar_area's
+    # shoelace over 4 corners sums in the order _area does, so the areas are _area's
     points = coords.astype(np.float32)
     boxes = np.array([cv2.boxPoints(cv2.minAreaRect(points[a:b - 1]))
                       for a, b in zip(starts.tolist(), ends.tolist())], np.float64).reshape(-1, 4, 2)
@@ -415,10 +410,7 @@ def _best_cut(p: Polygon, rect: np.ndarray) -> list[Polygon] | None:
         # turn the cut's direction onto the y axis and cut with vertical lines (both sides of the
         # rectangle: x and y after turning by angle and angle + 90)
         for turn in (angle, angle + 90.0):
-            q = shapely.affinity.rotate(p, -turn, origin=(0, 0))
-            x0, y0, x1, y1 = q.bounds
-            pad = 1.0 + (x1 - x0) + (y1 - y0)
-            for pieces, cost in _cuts(q, np.linspace(x0, x1, PARTS_CUTS + 2)[1:-1], pad):
+            for pieces, cost in _cuts(shapely.affinity.rotate(p, -turn, origin=(0, 0))):
                 if len(pieces) < 2:
                     continue
                 if cost < best_cost * (1 - 1e-9):
