@@ -95,14 +95,9 @@ PAIR_PITCH = 0.4
 #: 1280 x 960 view by about 10 px against its centre, which no similarity follows). Outline
 #: centres fit a similarity to 0.1-0.3 px where it holds.
 HOMOGRAPHY_TRY_PX = 0.5
-#: RANSAC is skipped when the pairs agree with the least-squares fit and that fit moves no cell
+#: RANSAC is skipped when every pair agrees with the least-squares fit and that fit moves no cell
 #: more than this fraction of a pitch from the coarse estimate (pairing again would change nothing).
 FAST_PITCH = 0.05
-#: ... where "agree" means all but this share of them, at most, lie within RANSAC's threshold of the
-#: fit (refitted without them): the outlines of symbols an object hides in part, matched all the same,
-#: are centred pixels off their cells on most frames with objects, and with four in five pairs
-#: agreeing within a fiftieth of a pitch, RANSAC's sample would find the same consensus.
-FAST_OUTLIER_SHARE = 0.2
 
 
 @dataclass(frozen=True, eq=False)
@@ -448,41 +443,25 @@ def _homography_pairs(src: np.ndarray, dst: np.ndarray, centres: np.ndarray, gri
 
 def _agreeing_fit(src: np.ndarray, dst: np.ndarray, hint: np.ndarray, inlier_px: float,
                   pitch: float) -> tuple[np.ndarray, np.ndarray, float, str] | None:
-    """The trimmed least-squares fit of the pairs when all of them but
-    :data:`FAST_OUTLIER_SHARE` agree with it within ``inlier_px`` (it is then refitted on those)
-    and it lies within :data:`FAST_PITCH` of a pitch of ``hint`` everywhere, else None (RANSAC
-    must sort the pairs): the matrix, the mask of the pairs kept, their RMS and the model. The fit
-    is a similarity, or a homography when ``hint`` is one (a tilted camera's last pose). A camera
-    that moves little between frames takes this path; symbols in wrong places that outnumber the
-    share, or pull the fit away from the hint, send the frame to RANSAC."""
-    projective = _projective(hint)
-
-    def fitted(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, np.ndarray, float] | None:
-        if projective and len(src) >= HOMOGRAPHY_MIN_SYMBOLS:
-            return _trimmed_homography(src, dst)
-        return _trimmed_fit(src, dst)
-
-    model = "homography" if projective and len(src) >= HOMOGRAPHY_MIN_SYMBOLS else "similarity"
-    fit = fitted(src, dst)
+    """The trimmed least-squares fit of the pairs when all of them agree with it within
+    ``inlier_px``, it lies within :data:`FAST_PITCH` of a pitch of ``hint`` everywhere and, a
+    similarity, it leaves at most :data:`HOMOGRAPHY_TRY_PX`; else None (RANSAC's path must sort
+    the pairs, and try a homography): the matrix, the mask of the pairs kept, their RMS and the
+    model. The fit is a similarity, or a homography when ``hint`` is one (a tilted camera's last
+    pose). A camera that moves little between frames takes this path: one symbol in a wrong place
+    lies far off any fit and sends the frame to RANSAC."""
+    fit: tuple[np.ndarray, np.ndarray, float] | None
+    model = "similarity"
+    if _projective(hint) and len(src) >= HOMOGRAPHY_MIN_SYMBOLS:
+        fit, model = _trimmed_homography(src, dst), "homography"
+    else:
+        fit = _trimmed_fit(src, dst)
     if fit is None:
         return None
     matrix, keep, rms = fit
     moved = apply(matrix, src)
-    agree = _distances(moved, dst) <= inlier_px
-    n_agree = int(np.count_nonzero(agree))
-    if n_agree < len(agree):
-        if n_agree < max(MIN_SYMBOLS, (1.0 - FAST_OUTLIER_SHARE) * len(agree)) or \
-                (model == "homography" and n_agree < HOMOGRAPHY_MIN_SYMBOLS):
-            return None
-        fit = fitted(src[agree], dst[agree])
-        if fit is None:
-            return None
-        matrix, kept, rms = fit
-        moved = apply(matrix, src)
-        if float(_distances(moved[agree], dst[agree]).max()) > inlier_px:
-            return None
-        keep = np.zeros(len(agree), bool)
-        keep[np.flatnonzero(agree)[kept]] = True
+    if float(_distances(moved, dst).max()) > inlier_px:
+        return None
     if float(np.abs(moved - apply(hint, src)).max()) > FAST_PITCH * pitch:
         return None
     if model == "similarity" and rms > HOMOGRAPHY_TRY_PX:
