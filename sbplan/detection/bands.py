@@ -165,11 +165,11 @@ class RowBands:
         if xy.ndim != 3 or not xy.size:
             return self.to_stacked(xy.reshape(-1, 2)).reshape(xy.shape)
         y = xy[..., 1]
-        top = np.floor(y.min(axis=1) + 0.5)
-        band = np.clip(np.searchsorted(self.starts, top, side="right") - 1, 0, None)
-        last = np.clip(np.searchsorted(self.starts, np.floor(y.max(axis=1) + 0.5), side="right") - 1, 0, None)
+        lo, hi = y.min(axis=1), y.max(axis=1)
+        band = np.clip(np.searchsorted(self.starts, np.floor(lo + 0.5), side="right") - 1, 0, None)
+        last = np.clip(np.searchsorted(self.starts, np.floor(hi + 0.5), side="right") - 1, 0, None)
         shift = (self.starts - self.offsets)[band]
-        whole = (band == last) & (y.max(axis=1) - shift <= (self.offsets + self.stops - self.starts)[band])
+        whole = (band == last) & (hi - shift <= (self.offsets + self.stops - self.starts)[band])
         y -= shift[:, None]
         if not whole.all():
             split = ~whole

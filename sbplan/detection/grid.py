@@ -261,6 +261,7 @@ def _lattice(centres: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, int, np.
     # (the loop sets one every round: a fitted homography or the affine fallback)
     return pts, idx, cols, rows, np.asarray(homography, np.float64), float(pitch)
 
+
 def _affine_homography(idx: np.ndarray, pts: np.ndarray) -> np.ndarray:
     a = np.column_stack([idx, np.ones(len(idx))])
     sol, *_ = np.linalg.lstsq(a, pts, rcond=None)
