@@ -381,3 +381,78 @@ def test_grey_level_centres_do_not_move_under_light_or_noise(effects, limit):
     side = centre_window(calibration.symbol_polygons)
     shift = (grey_centres(changed, boxes, side) - grey_centres(plain, boxes, side)).mean(axis=0)
     assert np.hypot(*shift) < limit, shift
+
+
+def _grey_centres_numpy(gray, boxes, side):
+    """The grey-level centres as whole-array numpy expressions: the implementation the compiled
+    kernel (``sbplan.detection._kernels.grey_centres``) replaced, kept as its reference."""
+    from numpy.lib.stride_tricks import as_strided
+
+    from sbplan.detection.registration import CENTRE_FLOOR_SHARE
+
+    d = np.arange(side, dtype=np.float32) - np.float32((side - 1) / 2)
+    powers = np.ascontiguousarray(np.stack([np.ones(side, np.float32), d, d * d], axis=1))
+    boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
+    out = np.full((len(boxes), 2), np.nan)
+    if not len(boxes):
+        return out
+    h, w = gray.shape
+    mid = np.rint((boxes[:, :2] + boxes[:, 2:]) / 2).astype(np.int64)
+    x0, y0 = mid[:, 0] - side // 2, mid[:, 1] - side // 2
+    inside = (x0 >= 0) & (y0 >= 0) & (x0 + side <= w) & (y0 + side <= h)
+    if not inside.any():
+        return out
+    xs, ys = x0[inside], y0[inside]
+    n = len(xs)
+    squares = as_strided(gray, (h - side + 1, w - side + 1, side, side), gray.strides * 2, writeable=False)
+    win = squares[ys, xs].astype(np.float32)
+    ring = np.stack([win[:, 0, :], win[:, -1, :], win[:, :, 0], win[:, :, -1]])
+    top, bottom, left, right = ring.mean(axis=2)
+    middle = (top + bottom + left + right) * np.float32(0.25)
+    across = np.float32(1 / (side - 1))
+    slope_x, slope_y = (right - left) * across, (bottom - top) * across
+    half = d[-1]
+    at = np.stack([middle - slope_y * half, middle + slope_y * half, middle - slope_x * half, middle + slope_x * half])
+    along = np.stack([slope_x, slope_x, slope_y, slope_y])
+    ring -= at[:, :, None] + along[:, :, None] * d
+    deviation = np.abs(ring).mean(axis=(0, 2))
+    allowance = np.maximum(np.float32(3 * 1.2533) * deviation, np.float32(CENTRE_FLOOR_SHARE) * middle)
+    wt = np.subtract(win, (slope_x[:, None] * d)[:, None, :], out=win)
+    np.subtract(((middle - allowance)[:, None] + slope_y[:, None] * d)[:, :, None], wt, out=wt)
+    flat = wt.reshape(n * side, side)
+    cv2.threshold(flat, 0, 0, cv2.THRESH_TOZERO, dst=flat)
+    per_row = (flat @ powers).reshape(n, side, 3)  # sum w, w dx, w dx^2
+    m = per_row.transpose(0, 2, 1) @ powers  # (n, 3, 3): [x power, y power]
+    s0, sy, syy, sx, sxy, sxx = m[:, 0, 0], m[:, 0, 1], m[:, 0, 2], m[:, 1, 0], m[:, 1, 1], m[:, 2, 0]
+    gx, gy = slope_x / middle, slope_y / middle
+    total = s0 - gx * sx - gy * sy
+    mx = sx - gx * sxx - gy * sxy
+    my = sy - gx * sxy - gy * syy
+    good = (total > 0) & (middle > 0)
+    res = np.full((n, 2), np.nan)
+    centre = (side - 1) / 2
+    res[good, 0] = xs[good] + centre + mx[good] / total[good]
+    res[good, 1] = ys[good] + centre + my[good] / total[good]
+    out[inside] = res
+    return out
+
+
+@pytest.mark.parametrize("effects", [{}, {"gradient": 0.35}, {"noise": 8.0}, {"shadows": 0.5}],
+                         ids=["plain", "gradient", "noise", "shadows"])
+def test_compiled_grey_centres_agree_with_the_plain_numpy_model(effects):
+    # The compiled loop against the numpy expressions it replaced: the same centres but for the
+    # order of float32 sums (a few millionths of a pixel), and NaN for a square that leaves the
+    # image or a box that is not finite.
+    from sbplan.detection.registration import centre_window, grey_centres
+
+    floor = FloorSpec(width=640, height=480, cols=6, rows=4)
+    calibration = calibrate(render_reference(floor, seed=5))
+    image, _ = render_scene(floor, SceneSpec(n_obstacles=3, effects=effects), seed=5)
+    boxes = np.array([[*p.min(axis=0), *p.max(axis=0)] for p in calibration.symbol_polygons])
+    boxes = np.concatenate([boxes, [[0, 0, 10, 10], [630, 470, 639, 479], [np.nan, 5, 9, 9]]])
+    side = centre_window(calibration.symbol_polygons)
+    got = grey_centres(image, boxes, side)
+    want = np.concatenate([_grey_centres_numpy(image, boxes[:-1], side), [[np.nan, np.nan]]])
+    assert np.array_equal(np.isnan(got), np.isnan(want))
+    assert np.isnan(got[-3:]).all() and np.isfinite(got[:-3]).sum() >= 2 * (len(boxes) - 3) * 0.75
+    assert np.nanmax(np.abs(got - want)) < 1e-4

@@ -44,7 +44,6 @@ from typing import TYPE_CHECKING, Any
 
 import cv2
 import numpy as np
-from numpy.lib.stride_tricks import as_strided
 
 from ..errors import CameraMotionError
 from ..polygons import apply_homography as apply
@@ -742,13 +741,6 @@ def centre_window(polygons) -> int:
     return int(np.ceil(extent)) + 2 * CENTRE_MARGIN_PX + 1
 
 
-@functools.lru_cache(maxsize=8)
-def _powers(side: int) -> np.ndarray:
-    """(side, 3) float32: 1, d and d^2 for each column's offset d from the window's middle."""
-    d = np.arange(side, dtype=np.float32) - np.float32((side - 1) / 2)
-    return np.ascontiguousarray(np.stack([np.ones(side, np.float32), d, d * d], axis=1))
-
-
 def grey_centres(gray: np.ndarray, boxes: np.ndarray, side: int) -> np.ndarray:
     """Sub-pixel centres of dark symbols: the centre of darkness inside each box.
 
@@ -759,7 +751,8 @@ def grey_centres(gray: np.ndarray, boxes: np.ndarray, side: int) -> np.ndarray:
     floor's level), relative to the plane (light multiplies). Antialiased edges weigh in part, so the
     centre follows sub-pixel movements that the binary outline's pixels cannot show (a polygon's
     centre of area errs by 0.1 to 0.3 px, the same way on every symbol of a regular grid; this by
-    about 0.05 px). All boxes are read at one size, in one gather.
+    about 0.05 px). Each square is read once, by a compiled loop
+    (:func:`sbplan.detection._kernels.grey_centres`).
 
     Parameters
     ----------
@@ -777,67 +770,24 @@ def grey_centres(gray: np.ndarray, boxes: np.ndarray, side: int) -> np.ndarray:
     out = np.full((len(boxes), 2), np.nan)
     if not len(boxes):
         return out
+    gray = np.ascontiguousarray(gray, dtype=np.uint8)
     h, w = gray.shape
-    mid = np.rint((boxes[:, :2] + boxes[:, 2:]) / 2).astype(np.int64)
-    x0, y0 = mid[:, 0] - side // 2, mid[:, 1] - side // 2
-    inside = (x0 >= 0) & (y0 >= 0) & (x0 + side <= w) & (y0 + side <= h)
-    if not inside.any():
-        return out
-    xs, ys = x0[inside], y0[inside]
-    n = len(xs)
-    # every window in one gather, through a view of the image as all its side x side squares (a
-    # loop of slice copies costs three times as much), then one conversion to the float32 the
-    # weights are computed in
-    squares = as_strided(gray, (h - side + 1, w - side + 1, side, side), gray.strides * 2, writeable=False)
-    win = squares[ys, xs].astype(np.float32)
-    # The floor's level across each window: a plane through its border ring (the suite's
-    # lighting gradient changes it by several grey levels across a symbol), from each side's
-    # mean (the ring is read once: its top, bottom, left and right sides, each (n, side)).
-    ring = np.stack([win[:, 0, :], win[:, -1, :], win[:, :, 0], win[:, :, -1]])
-    top, bottom, left, right = ring.mean(axis=2)
-    middle = (top + bottom + left + right) * np.float32(0.25)
-    across = np.float32(1 / (side - 1))
-    slope_x, slope_y = (right - left) * across, (bottom - top) * across
-    powers = _powers(side)  # (side, 3): 1, d, d^2 for each offset d from the window's middle
-    d = powers[:, 1]
-    # Sensor noise takes floor pixels below a fixed allowance here and there: they weigh a little
-    # everywhere in the window, which pulls the centre towards the window's middle, the same way
-    # on every symbol (a whole frame's movement off by 0.21 px at 1920x1080 under the suite's
-    # noise). The allowance is three standard deviations of the ring about the plane (from its
-    # mean absolute deviation), at least CENTRE_FLOOR_SHARE of the floor's level.
-    half = d[-1]
-    # the plane along each side: its level at the side's middle, and its slope along the side
-    at = np.stack([middle - slope_y * half, middle + slope_y * half, middle - slope_x * half, middle + slope_x * half])
-    along = np.stack([slope_x, slope_x, slope_y, slope_y])
-    ring -= at[:, :, None] + along[:, :, None] * d
-    deviation = np.abs(ring).mean(axis=(0, 2))
-    allowance = np.maximum(np.float32(3 * 1.2533) * deviation, np.float32(CENTRE_FLOOR_SHARE) * middle)
-    # the weights in place of the window's copy: how far below the plane less the allowance (the
-    # window less the plane's column term, taken from its row term, in place: no window-sized
-    # plane is made)
-    wt = np.subtract(win, (slope_x[:, None] * d)[:, None, :], out=win)
-    np.subtract(((middle - allowance)[:, None] + slope_y[:, None] * d)[:, :, None], wt, out=wt)
-    # (OpenCV's clamp at zero in place costs a seventh of numpy's maximum)
-    flat = wt.reshape(n * side, side)
-    cv2.threshold(flat, 0, 0, cv2.THRESH_TOZERO, dst=flat)
-    # ... each relative to the floor's level there: light multiplies, so under a gradient the
-    # ink on the brighter side lies further below its floor and weighed more (a flat level:
-    # 0.18 px off at 1920x1080 on the suite's gradient; a plane without this: 0.34). With
-    # e = (slope . d) / middle, a few hundredths, 1 / plane = (1 - e) / middle to first order:
-    # the relative moments follow from the plain ones up to the second.
-    # every moment up to the second in two matrix products: over each row's columns, then over
-    # the rows (numpy's axis sums over a 3-D array cost several times more)
-    per_row = (flat @ powers).reshape(n, side, 3)  # sum w, w dx, w dx^2
-    m = per_row.transpose(0, 2, 1) @ powers  # (n, 3, 3): [x power, y power]
-    s0, sy, syy, sx, sxy, sxx = m[:, 0, 0], m[:, 0, 1], m[:, 0, 2], m[:, 1, 0], m[:, 1, 1], m[:, 2, 0]
-    gx, gy = slope_x / middle, slope_y / middle
-    total = s0 - gx * sx - gy * sy
-    mx = sx - gx * sxx - gy * sxy
-    my = sy - gx * sxy - gy * syy
-    good = (total > 0) & (middle > 0)
-    res = np.full((n, 2), np.nan)
-    centre = (side - 1) / 2
-    res[good, 0] = xs[good] + centre + mx[good] / total[good]
-    res[good, 1] = ys[good] + centre + my[good] / total[good]
-    out[inside] = res
+    finite = np.isfinite(boxes).all(axis=1)
+    mid = np.rint((boxes[:, :2] + boxes[:, 2:]) / 2)
+    mid[~finite] = -side
+    corner = mid.astype(np.int64) - side // 2
+    inside = (corner[:, 0] >= 0) & (corner[:, 1] >= 0) & (corner[:, 0] + side <= w) & (corner[:, 1] + side <= h)
+    if inside.all():
+        _compiled().grey_centres(gray, corner, int(side), CENTRE_FLOOR_SHARE, out)
+    elif inside.any():
+        res = np.empty((int(inside.sum()), 2))
+        _compiled().grey_centres(gray, np.ascontiguousarray(corner[inside]), int(side), CENTRE_FLOOR_SHARE, res)
+        out[inside] = res
     return out
+
+
+@functools.cache
+def _compiled():
+    """The compiled kernels, imported on first use (see :mod:`sbplan.detection._kernels`)."""
+    from . import _kernels
+    return _kernels

@@ -1,0 +1,114 @@
+"""Detection's compiled inner loops (numba).
+
+Every frame runs a few per-pixel reductions over small windows (a symbol's square, two dozen of
+them per frame). As numpy expressions each is a chain of whole-array passes and temporaries; the
+frame's budget (issue 14: 2.5 ms at 1280x960 on one core) has no room for that. Here each is one
+loop that reads every pixel once.
+
+Imported on first use only (numba takes a moment to import, and a kernel to compile the first time
+a machine runs it; ``cache=True`` keeps the compiled code beside this file, or in the user's cache
+when that is not writable), so that commands that do not detect stay quick to start.
+
+The callers validate their inputs; the kernels trust them: C-contiguous arrays of the dtypes
+named, finite coordinates.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+# The sums below may be reordered (fastmath): they are sums of finite float32 terms, and the order
+# changes their last bits only. That is what lets the inner loop run four or eight pixels at a time.
+
+
+@njit(cache=True, nogil=True, fastmath=True)
+def grey_centres(gray, corners, side, floor_share, out):  # pragma: no cover - compiled
+    """The centre of darkness of the ``side`` x ``side`` squares at ``corners`` (n, 2) int64 ``(x, y)``
+    of ``gray`` (H, W) uint8, written to ``out`` (n, 2) float64 (NaN where the square has no
+    darkness). See :func:`sbplan.detection.registration.grey_centres` for the model; the arithmetic
+    is its, in float32 as there, with the moments summed per row."""
+    half = np.float32((side - 1) / 2)
+    across = np.float32(1.0 / (side - 1))
+    zero = np.float32(0.0)
+    for k in range(corners.shape[0]):
+        x0 = corners[k, 0]
+        y0 = corners[k, 1]
+        x1 = x0 + side - 1
+        y1 = y0 + side - 1
+        # the floor's plane: through the means of the square's four sides
+        top = zero
+        bottom = zero
+        left = zero
+        right = zero
+        for j in range(side):
+            top += np.float32(gray[y0, x0 + j])
+            bottom += np.float32(gray[y1, x0 + j])
+            left += np.float32(gray[y0 + j, x0])
+            right += np.float32(gray[y0 + j, x1])
+        n_side = np.float32(side)
+        top /= n_side
+        bottom /= n_side
+        left /= n_side
+        right /= n_side
+        middle = (top + bottom + left + right) * np.float32(0.25)
+        if not middle > 0:
+            out[k, 0] = np.nan
+            out[k, 1] = np.nan
+            continue
+        slope_x = (right - left) * across
+        slope_y = (bottom - top) * across
+        # Sensor noise takes floor pixels below a fixed allowance here and there: they would weigh
+        # a little everywhere in the window and pull the centre towards its middle, the same way
+        # on every symbol (a whole frame's movement off by 0.21 px at 1920x1080 under the suite's
+        # noise). The allowance is three standard deviations of the ring about the plane (from its
+        # mean absolute deviation), at least floor_share of the floor's level.
+        deviation = zero
+        for j in range(side):
+            d = np.float32(j) - half
+            deviation += abs(np.float32(gray[y0, x0 + j]) - (middle - slope_y * half + slope_x * d))
+            deviation += abs(np.float32(gray[y1, x0 + j]) - (middle + slope_y * half + slope_x * d))
+            deviation += abs(np.float32(gray[y0 + j, x0]) - (middle - slope_x * half + slope_y * d))
+            deviation += abs(np.float32(gray[y0 + j, x1]) - (middle + slope_x * half + slope_y * d))
+        deviation /= np.float32(4 * side)
+        allowance = max(np.float32(3 * 1.2533) * deviation, np.float32(floor_share) * middle)
+        base = middle - allowance
+        # every moment up to the second of the weights (how far below the plane less the allowance)
+        s0 = 0.0
+        sx = 0.0
+        sy = 0.0
+        sxx = 0.0
+        sxy = 0.0
+        syy = 0.0
+        for r in range(side):
+            dy = np.float32(r) - half
+            level = base + slope_y * dy
+            w0 = zero
+            w1 = zero
+            w2 = zero
+            for c in range(side):
+                dx = np.float32(c) - half
+                wt = max(level - (np.float32(gray[y0 + r, x0 + c]) - slope_x * dx), zero)
+                w0 += wt
+                w1 += wt * dx
+                w2 += wt * dx * dx
+            s0 += w0
+            sx += w1
+            sxx += w2
+            sy += w0 * dy
+            sxy += w1 * dy
+            syy += w0 * dy * dy
+        # ... each relative to the floor's level there: light multiplies, so under a gradient the
+        # ink on the brighter side lies further below its floor and would weigh more (a flat
+        # level: 0.18 px off at 1920x1080 on the suite's gradient; a plane without this: 0.34).
+        # With e = (slope . d) / middle, 1 / plane = (1 - e) / middle to first order: the
+        # relative moments follow from the plain ones up to the second.
+        gx = slope_x / middle
+        gy = slope_y / middle
+        total = s0 - gx * sx - gy * sy
+        if total > 0:
+            out[k, 0] = x0 + (side - 1) / 2 + (sx - gx * sxx - gy * sxy) / total
+            out[k, 1] = y0 + (side - 1) / 2 + (sy - gx * sxy - gy * syy) / total
+        else:
+            out[k, 0] = np.nan
+            out[k, 1] = np.nan
