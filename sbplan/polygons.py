@@ -366,27 +366,15 @@ def centroids(polygons: Sequence[np.ndarray], *, on_zero_area: str = "raise", re
     pts, starts, counts = pack(polygons)
     if len(starts) == 0:
         return (np.zeros((0, 2)), np.zeros(0)) if return_areas else np.zeros((0, 2))
-    sums = np.add.reduceat(pts, starts, axis=0)
-    origin = sums / counts[:, None]
-    p = pts - np.repeat(origin, counts, axis=0)
-    f, fx, fy = _edge_integrals(p, p[_next_index(starts, counts, len(pts))])
-    area = np.add.reduceat(f, starts)
-    size = np.abs(area)
-    # No area is zero unless some is below the threshold of the largest outline: the per-outline
-    # thresholds are only worked out then.
-    bad = ~(size > 1e-12 * max(1.0, float(np.abs(p).max())) ** 2)
-    if bad.any():
-        scale = np.maximum(1.0, np.maximum.reduceat(np.abs(p).max(axis=1), starts)) ** 2
-        bad = ~(size > 1e-12 * scale)
-        if bad.any() and on_zero_area == "raise":
+    out = np.empty((len(starts), 2))
+    size = np.empty(len(starts))
+    # (one compiled loop over the points: the numpy expressions cost a dozen calls per batch)
+    _compiled().centres_of_area(np.ascontiguousarray(pts), starts, counts, out, size)
+    if on_zero_area == "raise":
+        bad = np.isnan(out[:, 0])
+        if bad.any():
             raise ContourError(f"polygons[{int(np.flatnonzero(bad)[0])}]: the polygon encloses no area, "
                                "so it has no centre of area")
-    # zero areas give NaN (left in place by where=), without the cost of an errstate block
-    out = np.full((len(starts), 2), np.nan)
-    good = ~bad
-    np.divide(np.add.reduceat(fx, starts), area, out=out[:, 0], where=good)
-    np.divide(np.add.reduceat(fy, starts), 2.0 * area, out=out[:, 1], where=good)
-    out += origin
     return (out, size) if return_areas else out
 
 
@@ -450,27 +438,19 @@ def _resample_complex(polygons: Sequence[np.ndarray], n: int) -> np.ndarray:
     m = len(starts)
     if m == 0:
         return np.zeros((0, n), np.complex128)
-    # Lay all outlines, each closed by repeating its first point, along one arc-length axis, with a
-    # gap of one unit between consecutive outlines so that no two outlines share an abscissa; then
-    # one np.interp of the points as complex numbers resamples them all.
-    ends = starts + counts + np.arange(m)  # index of each outline's closing point in that layout
-    src = np.arange(len(pts) + m) - np.repeat(np.arange(m), counts + 1)
-    src[ends] = starts
-    closed = pts[src]
-    d = np.diff(closed, axis=0)
-    step = np.hypot(d[:, 0], d[:, 1])
-    step[ends[:-1]] = 1.0
-    cum = np.empty(len(closed))
-    cum[0] = 0.0
-    np.cumsum(step, out=cum[1:])
-    begin = cum[ends - counts]
-    length = cum[ends] - begin
-    if not (length > 0).all():
-        raise ContourError(f"polygons[{int(np.flatnonzero(~(length > 0))[0])}]: all points coincide "
-                           "(zero perimeter)")
-    targets = (begin[:, None] + length[:, None] * _fractions(n)).ravel()
+    out = np.empty((m, n, 2))
+    zero = _compiled().resample_closed(np.ascontiguousarray(pts), starts, counts, _fractions(n), out)
+    if zero >= 0:
+        raise ContourError(f"polygons[{zero}]: all points coincide (zero perimeter)")
     # (x, y) rows of a C-contiguous float64 array are complex128 numbers x + iy in memory
-    return np.interp(targets, cum, closed.view(np.complex128).ravel()).reshape(m, n)
+    return out.view(np.complex128).reshape(m, n)
+
+
+@functools.cache
+def _compiled():
+    """The compiled loops (:mod:`sbplan._kernels`), imported on first use: numba takes a moment."""
+    from . import _kernels
+    return _kernels
 
 
 @functools.lru_cache(maxsize=16)

@@ -149,6 +149,40 @@ def test_resample_complex_and_xy_agree_for_lists_and_batches():
     assert np.array_equal(x16, zb.real[:, ::2])
 
 
+def _resample_interp(points, n):
+    """One closed outline sampled at j/n of its perimeter by np.interp over its cumulative arc
+    length: the numpy expression the compiled loop replaced."""
+    closed = np.vstack([points, points[:1]])
+    cum = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(closed, axis=0).T))])
+    t = cum[-1] * np.arange(n) / n
+    return np.stack([np.interp(t, cum, closed[:, 0]), np.interp(t, cum, closed[:, 1])], axis=1)
+
+
+@settings(max_examples=60, deadline=None)
+@given(seeds=st.lists(st.integers(0, 2**32 - 1), min_size=1, max_size=8), n=st.integers(3, 300),
+       cx=st.floats(-1e4, 1e4), scale=st.floats(0.01, 500), repeat=st.integers(0, 3))
+def test_compiled_centres_and_samples_agree_with_numpy(seeds, n, cx, scale, repeat):
+    # The compiled loops of a whole batch against the plain per-outline numpy (shapely's centre,
+    # np.interp's samples), with repeated vertices (zero-length edges) in some outlines.
+    from sbplan.polygons import PolygonBatch, centroids, resample_complex
+
+    polys = []
+    for s in seeds:
+        p = star_polygon(s, center=(cx, -cx / 3), scale=scale)
+        polys.append(np.repeat(p, [1 + repeat * (i % 2) for i in range(len(p))], axis=0))
+    batch = PolygonBatch.from_list(polys)
+    centres, areas = centroids(batch, return_areas=True)
+    extent = scale + abs(cx)
+    for p, c, a in zip(polys, centres, areas):
+        poly = shapely.Polygon(p)
+        assert np.allclose(c, [poly.centroid.x, poly.centroid.y], rtol=0, atol=1e-9 * extent)
+        assert a == pytest.approx(poly.area, rel=1e-9, abs=1e-9 * extent ** 2)
+    z = resample_complex(batch, n)
+    for p, row in zip(polys, z):
+        assert np.allclose(np.stack([row.real, row.imag], axis=1), _resample_interp(p, n), rtol=0,
+                           atol=1e-9 * extent)
+
+
 @pytest.mark.parametrize("matrix", [
     [[1.002, -0.01, 3.5], [0.01, 1.002, -2.0], [0.0, 0.0, 1.0]],  # a camera's similarity
     [[0.98, 0.03, 12.0], [-0.02, 1.01, 4.0], [2e-5, -1e-5, 1.0]],  # a tilted camera's homography

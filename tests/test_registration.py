@@ -12,6 +12,7 @@ import sys
 import cv2
 import numpy as np
 import pytest
+from hypothesis import given, settings, strategies as st
 import shapely
 
 from sbplan.detection.calibration import Calibration, calibrate, load_calibration, update_calibration
@@ -456,3 +457,80 @@ def test_compiled_grey_centres_agree_with_the_plain_numpy_model(effects):
     assert np.array_equal(np.isnan(got), np.isnan(want))
     assert np.isnan(got[-3:]).all() and np.isfinite(got[:-3]).sum() >= 2 * (len(boxes) - 3) * 0.75
     assert np.nanmax(np.abs(got - want)) < 1e-4
+
+
+def _trimmed_fit_numpy(src, dst):
+    """The trimmed least-squares similarity as numpy expressions: what the compiled
+    ``trimmed_similarity`` replaced, kept as its reference."""
+    from sbplan.detection.registration import MIN_SYMBOLS, TRIM_FLOOR_PX, TRIM_SIGMAS
+
+    def lsq(s, d):
+        ms, md = s.mean(axis=0), d.mean(axis=0)
+        xs, xd = s - ms, d - md
+        sxx = max(float((xs * xs).sum()), 1e-12)
+        a = float((xs * xd).sum()) / sxx
+        b = float(xs[:, 0] @ xd[:, 1] - xs[:, 1] @ xd[:, 0]) / sxx
+        return np.array([[a, -b, md[0] - a * ms[0] + b * ms[1]], [b, a, md[1] - b * ms[0] - a * ms[1]], [0, 0, 1.0]])
+
+    def resid(m, s, d):
+        return np.linalg.norm(s @ m[:2, :2].T + m[:2, 2] - d, axis=1)
+
+    m = lsq(src, dst)
+    r = resid(m, src, dst)
+    keep = r <= max(TRIM_FLOOR_PX, TRIM_SIGMAS * 1.4826 * np.median(r))
+    if MIN_SYMBOLS <= keep.sum() < len(keep):
+        m = lsq(src[keep], dst[keep])
+        r = resid(m, src[keep], dst[keep])
+    else:
+        keep = np.ones(len(src), bool)
+    return m, keep, float(np.sqrt(np.mean(r ** 2)))
+
+
+@settings(max_examples=80, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(2, 60), outliers=st.integers(0, 6))
+def test_compiled_trimmed_fit_agrees_with_numpy(seed, n, outliers):
+    # The compiled fit and trimming against the numpy expressions it replaced: a camera's
+    # similarity with sub-pixel noise, and a few centres pulled pixels away.
+    from sbplan.detection.registration import _trimmed_fit
+
+    rng = np.random.default_rng(seed)
+    src = rng.uniform(0, 1280, (n, 2))
+    angle, scale = rng.uniform(-0.01, 0.01), rng.uniform(0.99, 1.01)
+    rot = scale * np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
+    dst = src @ rot.T + rng.uniform(-8, 8, 2) + rng.normal(0, 0.05, (n, 2))
+    dst[:min(outliers, n)] += rng.uniform(1, 5, (min(outliers, n), 2))
+    matrix, keep, rms = _trimmed_fit(src, dst)
+    want_m, want_keep, want_rms = _trimmed_fit_numpy(src, dst)
+    assert np.array_equal(keep, want_keep)
+    assert np.allclose(matrix, want_m, rtol=1e-9, atol=1e-7) and rms == pytest.approx(want_rms, rel=1e-9, abs=1e-12)
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), tilt=st.booleans())
+def test_compiled_pairing_agrees_with_numpy(seed, tilt):
+    # Each centre's cell through the compiled loop against the same maps in numpy, on a grid seen
+    # by a moved (and, with tilt, tilted) camera, centres thrown all over the frame.
+    from sbplan.detection.registration import PAIR_PITCH, _pair
+    from sbplan.polygons import apply_homography
+
+    rng = np.random.default_rng(seed)
+    floor = FloorSpec(width=640, height=480, cols=6, rows=4)
+    grid = _small_grid(floor)
+    hint = np.array([[1.0, -0.01, rng.uniform(-20, 20)], [0.01, 1.0, rng.uniform(-20, 20)],
+                     [rng.uniform(-2e-5, 2e-5) if tilt else 0.0, 0.0, 1.0]])
+    centres = np.concatenate([apply_homography(hint, grid.centres_px.reshape(-1, 2)) + rng.normal(0, 8, (24, 2)),
+                              rng.uniform(-100, 700, (20, 2))])
+    pitch = float(min(grid.pitch_px))
+    got = _pair(centres, grid, np.linalg.inv(hint), pitch)
+    guess = apply_homography(np.linalg.inv(hint), centres)
+    cell = np.rint(apply_homography(grid.inverse_homography, guess)).astype(np.int64)
+    inside = (cell[:, 1] >= 0) & (cell[:, 1] < grid.rows) & (cell[:, 0] >= 0) & (cell[:, 0] < grid.cols)
+    flat = np.where(inside, cell[:, 1] * grid.cols + cell[:, 0], 0)
+    near = ((grid.centres_px.reshape(-1, 2)[flat] - guess) ** 2).sum(axis=1) <= (PAIR_PITCH * pitch) ** 2
+    assert np.array_equal(got, np.where(inside & near, flat, -1))
+    assert (got >= 0).sum() >= 10
+
+
+@functools.lru_cache(maxsize=2)
+def _small_grid(floor):
+    return calibrate(render_reference(floor, seed=2)).grid

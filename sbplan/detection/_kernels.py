@@ -15,6 +15,8 @@ named, finite coordinates.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
@@ -112,3 +114,122 @@ def grey_centres(gray, corners, side, floor_share, out):  # pragma: no cover - c
         else:
             out[k, 0] = np.nan
             out[k, 1] = np.nan
+
+
+@njit(cache=True, nogil=True)
+def _similarity(src, dst, keep, matrix):  # pragma: no cover - compiled
+    """The least-squares similarity ``dst ~ s R src + t`` of the pairs ``keep`` marks, into ``matrix``."""
+    n = 0
+    msx = 0.0
+    msy = 0.0
+    mdx = 0.0
+    mdy = 0.0
+    for i in range(src.shape[0]):
+        if keep[i]:
+            n += 1
+            msx += src[i, 0]
+            msy += src[i, 1]
+            mdx += dst[i, 0]
+            mdy += dst[i, 1]
+    msx /= n
+    msy /= n
+    mdx /= n
+    mdy /= n
+    sxx = 0.0
+    sa = 0.0
+    sb = 0.0
+    for i in range(src.shape[0]):
+        if keep[i]:
+            xs = src[i, 0] - msx
+            ys = src[i, 1] - msy
+            xd = dst[i, 0] - mdx
+            yd = dst[i, 1] - mdy
+            sxx += xs * xs + ys * ys
+            sa += xs * xd + ys * yd
+            sb += xs * yd - ys * xd
+    sxx = max(sxx, 1e-12)
+    a = sa / sxx
+    b = sb / sxx
+    matrix[0, 0] = a
+    matrix[0, 1] = -b
+    matrix[0, 2] = mdx - a * msx + b * msy
+    matrix[1, 0] = b
+    matrix[1, 1] = a
+    matrix[1, 2] = mdy - b * msx - a * msy
+    matrix[2, 0] = 0.0
+    matrix[2, 1] = 0.0
+    matrix[2, 2] = 1.0
+
+
+@njit(cache=True, nogil=True)
+def _residuals(src, dst, keep, matrix, resid):  # pragma: no cover - compiled
+    """Distances of the pairs ``keep`` marks from ``matrix``'s (affine) map, packed into the
+    front of ``resid``; returns how many."""
+    m = 0
+    for i in range(src.shape[0]):
+        if keep[i]:
+            dx = matrix[0, 0] * src[i, 0] + matrix[0, 1] * src[i, 1] + matrix[0, 2] - dst[i, 0]
+            dy = matrix[1, 0] * src[i, 0] + matrix[1, 1] * src[i, 1] + matrix[1, 2] - dst[i, 1]
+            resid[m] = math.sqrt(dx * dx + dy * dy)
+            m += 1
+    return m
+
+
+@njit(cache=True, nogil=True)
+def trimmed_similarity(src, dst, floor_px, sigmas, min_keep, matrix, keep):  # pragma: no cover - compiled
+    """:func:`sbplan.detection.registration._trimmed_fit` in one call: the least-squares similarity
+    of the pairs ``src`` -> ``dst`` (n, 2), refitted without the pairs whose residual exceeds
+    ``max(floor_px, sigmas * 1.4826 * median)`` when at least ``min_keep`` remain. Writes the
+    matrix (3, 3) and the mask of the pairs kept (n,) bool; returns their RMS residual."""
+    n = src.shape[0]
+    for i in range(n):
+        keep[i] = True
+    _similarity(src, dst, keep, matrix)
+    resid = np.empty(n)
+    _residuals(src, dst, keep, matrix, resid)
+    ordered = np.sort(resid)
+    mid = ordered[n // 2] if n % 2 else 0.5 * (ordered[n // 2 - 1] + ordered[n // 2])
+    limit = max(floor_px, sigmas * 1.4826 * mid)
+    kept = 0
+    for i in range(n):
+        keep[i] = resid[i] <= limit
+        kept += keep[i]
+    if min_keep <= kept < n:
+        _similarity(src, dst, keep, matrix)
+        m = _residuals(src, dst, keep, matrix, resid)
+    else:
+        for i in range(n):
+            keep[i] = True
+        m = n
+    total = 0.0
+    for i in range(m):
+        total += resid[i] * resid[i]
+    return math.sqrt(total / m)
+
+
+@njit(cache=True, nogil=True)
+def pair_cells(centres, to_calibration, to_cell, cell_centres, rows, cols, max_d2, out):  # pragma: no cover - compiled
+    """:func:`sbplan.detection.registration._pair` in one call: each centre (n, 2) mapped by
+    ``to_calibration`` (3, 3), then to grid coordinates by ``to_cell`` (3, 3, the grid's inverse
+    homography) and rounded to a cell; ``out`` (n,) gets the cell's flat index when the cell is on
+    the grid and its centre (``cell_centres`` (rows * cols, 2)) lies within ``sqrt(max_d2)`` of the
+    mapped centre, else -1."""
+    for i in range(centres.shape[0]):
+        x, y = centres[i, 0], centres[i, 1]
+        w = to_calibration[2, 0] * x + to_calibration[2, 1] * y + to_calibration[2, 2]
+        gx = (to_calibration[0, 0] * x + to_calibration[0, 1] * y + to_calibration[0, 2]) / w
+        gy = (to_calibration[1, 0] * x + to_calibration[1, 1] * y + to_calibration[1, 2]) / w
+        w = to_cell[2, 0] * gx + to_cell[2, 1] * gy + to_cell[2, 2]
+        cx = (to_cell[0, 0] * gx + to_cell[0, 1] * gy + to_cell[0, 2]) / w
+        cy = (to_cell[1, 0] * gx + to_cell[1, 1] * gy + to_cell[1, 2]) / w
+        out[i] = -1
+        if not (abs(cx) < 1e9 and abs(cy) < 1e9):
+            continue
+        col = np.int64(np.rint(cx))
+        row = np.int64(np.rint(cy))
+        if 0 <= row < rows and 0 <= col < cols:
+            flat = row * cols + col
+            dx = cell_centres[flat, 0] - gx
+            dy = cell_centres[flat, 1] - gy
+            if dx * dx + dy * dy <= max_d2:
+                out[i] = flat

@@ -223,48 +223,29 @@ def _distances(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
 
 
-def _similarity_lsq(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
-    """The least-squares similarity ``dst ~ s R src + t`` (closed form; called a few times per
-    frame on a few dozen pairs, so written for few numpy calls)."""
-    n = len(src)
-    ms, md = src.sum(axis=0) / n, dst.sum(axis=0) / n
-    xs, xd = src - ms, dst - md
-    sxx = float(np.einsum("ij,ij->", xs, xs))
-    a = float(np.einsum("ij,ij->", xs, xd)) / max(sxx, 1e-12)
-    b = float(xs[:, 0] @ xd[:, 1] - xs[:, 1] @ xd[:, 0]) / max(sxx, 1e-12)
-    return np.array([[a, -b, md[0] - a * ms[0] + b * ms[1]],
-                     [b, a, md[1] - b * ms[0] - a * ms[1]],
-                     [0.0, 0.0, 1.0]])
-
-
 def _pair(centres: np.ndarray, grid: "Grid", to_calibration: np.ndarray, pitch: float) -> np.ndarray:
     """Each centre's nearest cell (flat index; -1 when none lies within PAIR_PITCH of a pitch), the
-    centres first mapped to calibration pixels by ``to_calibration``."""
-    if not len(centres):
-        return np.zeros(0, np.int64)
-    guess = apply(to_calibration, centres)
-    cell = np.rint(apply(grid.inverse_homography, guess)).astype(np.int64)
-    col, row = cell[:, 0], cell[:, 1]
-    inside = (row >= 0) & (row < grid.rows) & (col >= 0) & (col < grid.cols)
-    flat = np.where(inside, row * grid.cols + col, 0)
-    d2 = np.sum((grid.centres_px.reshape(-1, 2)[flat] - guess) ** 2, axis=1)
-    return np.where(inside & (d2 <= (PAIR_PITCH * pitch) ** 2), flat, -1)
+    centres first mapped to calibration pixels by ``to_calibration`` (one compiled loop:
+    :func:`sbplan.detection._kernels.pair_cells`)."""
+    out = np.empty(len(centres), np.int64)
+    if len(centres):
+        _compiled().pair_cells(np.ascontiguousarray(centres, np.float64), np.ascontiguousarray(to_calibration, np.float64),
+                               grid.inverse_homography, grid.centres_px.reshape(-1, 2), grid.rows, grid.cols,
+                               (PAIR_PITCH * pitch) ** 2, out)
+    return out
 
 
 def _trimmed_fit(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     """The least-squares similarity of the pairs, refitted without those that stray well beyond the
     others (centres pulled by something dark beside their symbol err by a fraction of a pixel,
-    inside RANSAC's threshold). Returns the matrix, the mask of the pairs kept and their RMS."""
-    matrix = _similarity_lsq(src, dst)
-    resid = _distances(apply(matrix, src), dst)
-    keep = resid <= max(TRIM_FLOOR_PX, TRIM_SIGMAS * 1.4826 * median(resid))
-    kept = int(np.count_nonzero(keep))
-    if MIN_SYMBOLS <= kept < len(keep):
-        matrix = _similarity_lsq(src[keep], dst[keep])
-        resid = _distances(apply(matrix, src[keep]), dst[keep])
-    else:
-        keep = np.ones(len(src), bool)
-    return matrix, keep, math.sqrt(float(resid @ resid) / len(resid))
+    inside RANSAC's threshold). Returns the matrix, the mask of the pairs kept and their RMS.
+    (One compiled call, :func:`sbplan.detection._kernels.trimmed_similarity`: it runs twice a frame
+    on a few dozen pairs, where a dozen numpy calls cost more than the arithmetic.)"""
+    matrix = np.empty((3, 3))
+    keep = np.empty(len(src), bool)
+    rms = _compiled().trimmed_similarity(np.ascontiguousarray(src, np.float64), np.ascontiguousarray(dst, np.float64),
+                                         TRIM_FLOOR_PX, TRIM_SIGMAS, MIN_SYMBOLS, matrix, keep)
+    return matrix, keep, float(rms)
 
 
 def _homography_lsq(src: np.ndarray, dst: np.ndarray) -> np.ndarray | None:
