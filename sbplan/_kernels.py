@@ -95,3 +95,22 @@ def resample_closed(points, starts, counts, fractions, out):  # pragma: no cover
                 out[k, q, 0] = points[a, 0]
                 out[k, q, 1] = points[a, 1]
     return -1
+
+
+@njit(cache=True, nogil=True)
+def bounding_boxes(points, starts, counts, picked, out):  # pragma: no cover - compiled
+    """The bounding box ``(x0, y0, x1, y1)`` of each outline of ``picked`` (k,), into ``out`` (k, 4)."""
+    for q in range(picked.shape[0]):
+        k = picked[q]
+        s = starts[k]
+        x0 = x1 = points[s, 0]
+        y0 = y1 = points[s, 1]
+        for i in range(s + 1, s + counts[k]):
+            x0 = min(x0, points[i, 0])
+            x1 = max(x1, points[i, 0])
+            y0 = min(y0, points[i, 1])
+            y1 = max(y1, points[i, 1])
+        out[q, 0] = x0
+        out[q, 1] = y0
+        out[q, 2] = x1
+        out[q, 3] = y1

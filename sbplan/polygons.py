@@ -114,6 +114,15 @@ class PolygonBatch(collections.abc.Sequence[np.ndarray]):
         offsets = np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
         return PolygonBatch.unchecked(self.points[np.repeat(self.starts[idx], counts) + offsets], counts)
 
+    def boxes(self, indices: np.ndarray | None = None) -> np.ndarray:
+        """Bounding boxes ``(x0, y0, x1, y1)`` of the outlines at ``indices`` (int array; default
+        all): shape (k, 4), float64."""
+        picked = np.arange(len(self)) if indices is None else np.ascontiguousarray(indices, np.int64)
+        out = np.empty((len(picked), 4))
+        if len(picked):
+            _compiled().bounding_boxes(self.points, self.starts, self.counts, picked, out)
+        return out
+
     def _cached_resample(self, n: int) -> np.ndarray | None:
         for have, w in self._resampled.items():
             if have % n == 0:

@@ -8,6 +8,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
+from hypothesis import given, settings, strategies as st
 
 from sbplan.detection.calibration import Calibration, calibrate
 from sbplan.detection import Detector
@@ -156,3 +157,48 @@ def test_calibration_files_without_edge_contrast_load_and_detect_as_before(shado
     occupied = Detector(old).find_cells(image).occupied
     assert occupied[4, 6]  # no rescue: the outline checks' answer
     assert occupied[truth.cells == 1].all()
+
+
+def _breaks_short_python(broken, limit, gap, max_breaks):
+    """The break rule in plain Python, as it was before the compiled loop replaced it."""
+    if all(broken):
+        return False
+    if not any(broken):
+        return True
+    start = broken.index(False)
+    seq = broken[start:] + broken[:start]
+    spans = []
+    for k, b in enumerate(seq):
+        if not b:
+            continue
+        if spans and k - spans[-1][1] <= gap:
+            spans[-1][1] = k + 1
+        else:
+            spans.append([k, k + 1])
+    return len(spans) <= max_breaks and max(b - a for a, b in spans) <= limit
+
+
+@settings(max_examples=200, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 12), points=st.integers(1, 40),
+       density=st.floats(0, 0.5), with_probed=st.booleans())
+def test_intact_edges_follows_the_plain_break_rule(seed, n, points, density, with_probed):
+    # The compiled break rule against the plain Python one, over random broken runs (the
+    # density of broken points up to a half: outlines past the forgiven count are not looked at).
+    from sbplan.detection.outline_checks import EDGE_MAX_BREAKS, intact_edges
+
+    rng = np.random.default_rng(seed)
+    kept = rng.random((n, points)) >= density
+    probed = rng.random((n, points)) >= 0.2 if with_probed else None
+    limit = rng.integers(0, 5, n)
+    gap = rng.integers(1, 4, n)
+    got = intact_edges(kept, max_break=limit, probed=probed, gap=gap)
+    for i in range(n):
+        broken = (~kept[i] if probed is None else ~kept[i][probed[i]]).tolist()
+        counted = sum(broken)
+        if kept[i].all():
+            want = True
+        elif limit[i] <= 0 or counted > limit[i] * EDGE_MAX_BREAKS:
+            want = False
+        else:
+            want = _breaks_short_python(broken, int(limit[i]), int(gap[i]), EDGE_MAX_BREAKS)
+        assert got[i] == want, (i, broken, limit[i], gap[i])

@@ -123,6 +123,9 @@ def test_polygon_batch_is_a_sequence_that_pack_takes_as_is():
     assert [len(p) for p in picked] == [4, 3] and np.array_equal(picked[0], polys[2])
     assert len(batch.take(np.array([False, True, False]))) == 1 and len(batch.take([])) == 0
     assert np.array_equal(batch[1:][0], polys[1])
+    boxes = np.array([[*p.min(axis=0), *p.max(axis=0)] for p in polys])
+    assert np.array_equal(batch.boxes(), boxes) and np.array_equal(batch.boxes(np.array([2, 0])), boxes[[2, 0]])
+    assert batch.boxes(np.zeros(0, np.int64)).shape == (0, 4)
 
 
 @pytest.mark.parametrize("points, counts", [(np.zeros((5, 2)), [2, 3]), (np.zeros((5, 2)), [3, 3]),

@@ -233,3 +233,44 @@ def pair_cells(centres, to_calibration, to_cell, cell_centres, rows, cols, max_d
             dy = cell_centres[flat, 1] - gy
             if dx * dx + dy * dy <= max_d2:
                 out[i] = flat
+
+
+@njit(cache=True, nogil=True)
+def short_breaks(kept, probed, rows, limit, gap, max_breaks, intact):  # pragma: no cover - compiled
+    """For each outline ``i`` of ``rows``: do the runs of its broken points (``~kept[i]`` (S,), counted
+    over the ``probed[i]`` points only) around the closed outline make at most ``max_breaks`` breaks
+    of at most ``limit[i]`` points each, runs at most ``gap[i]`` kept points apart counting as one
+    break? Written to ``intact[i]``. (:func:`sbplan.detection.outline_checks.intact_edges`.)"""
+    broken = np.empty(kept.shape[1], np.bool_)
+    for i in rows:
+        n = 0
+        for k in range(kept.shape[1]):
+            if probed[i, k]:
+                broken[n] = not kept[i, k]
+                n += 1
+        start = -1
+        for k in range(n):
+            if not broken[k]:
+                start = k
+                break
+        if start < 0:
+            intact[i] = False  # broken all round (or nothing probed)
+            continue
+        breaks = 0
+        first = 0
+        last = 0  # end (exclusive) of the last break
+        longest = 0
+        for k in range(n):
+            if not broken[(start + k) % n]:
+                continue
+            if breaks and k - last <= gap[i]:
+                last = k + 1
+            else:
+                if breaks:
+                    longest = max(longest, last - first)
+                breaks += 1
+                first = k
+                last = k + 1
+        if breaks:
+            longest = max(longest, last - first)
+        intact[i] = breaks <= max_breaks and longest <= limit[i]

@@ -412,15 +412,13 @@ class Detector:
         a crop whose corner is ``origin`` (x, y) in the working image; with ``only`` (flat cells,
         bool), the outlines of other cells are not checked (not passed)."""
         cal, work = self.calibration, self.work
-        cols = cal.grid.cols
         flat = np.full(len(hit), -1, np.int64)
         ok = np.zeros(len(hit), bool)
         moved = motion.moved
         if len(hit):
             # centres in the calibration's pixels, where the cells and their reference outlines are
             centres = motion.to_calibration(centres) if moved else centres
-            cells = cal.grid.assign(centres)
-            flat = np.maximum(cells[:, 0] * cols + cells[:, 1], -1)  # -1 off the grid
+            flat = cal.grid.assign_flat(centres)  # -1 off the grid
             # idx: the hits still taken for their cell's symbol, narrowed by each test below
             idx = np.flatnonzero(flat >= 0)
             if only is not None:
@@ -714,14 +712,13 @@ class Detector:
                bands: RowBands | None) -> np.ndarray:
         """Bounding boxes ``(x0, y0, x1, y1)`` in working pixels of the polygons ``picked``, whose
         centres in working pixels are ``centres``."""
-        lo = np.minimum.reduceat(polygons.points, polygons.starts, axis=0)[picked]
-        hi = np.maximum.reduceat(polygons.points, polygons.starts, axis=0)[picked]
+        boxes = polygons.boxes(picked)
         if bands is not None:
             # an outline lies inside one band: all its rows move by that band's shift
             dy = centres[:, 1] - bands.to_stacked(centres)[:, 1]
-            lo[:, 1] += dy
-            hi[:, 1] += dy
-        return np.concatenate([lo, hi], axis=1)
+            boxes[:, 1] += dy
+            boxes[:, 3] += dy
+        return boxes
 
     def __call__(self, image: ImageInput) -> Detection:
         """The whole detection: :meth:`find_cells`, then the occupancy image, the obstacles'

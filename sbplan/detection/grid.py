@@ -22,6 +22,8 @@ import numpy as np
 
 from ..errors import CalibrationError
 
+_IDENTITY = np.eye(3)
+
 
 @dataclass(frozen=True, eq=False)
 class Grid:
@@ -67,20 +69,32 @@ class Grid:
         A point belongs to a cell when it lies within ``tolerance_px`` of that cell's measured
         centre. Returns an int array of shape (N, 2).
         """
-        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
-        out = np.full((len(xy), 2), -1, dtype=np.int64)
-        if not len(xy):
-            return out
-        lat = np.rint(self.px_to_lattice(xy)).astype(np.int64)
-        col, row = lat[:, 0], lat[:, 1]
-        inside = (row >= 0) & (row < self.rows) & (col >= 0) & (col < self.cols)
-        idx = np.flatnonzero(inside)
-        off = self.centres_px[row[idx], col[idx]] - xy[idx]
-        # (squared distances against the squared tolerance: np.linalg.norm's dispatch costs more
-        # than the arithmetic on a frame's few dozen centres)
-        ok = idx[np.einsum("ij,ij->i", off, off) <= self.tolerance_px ** 2]
-        out[ok, 0], out[ok, 1] = row[ok], col[ok]
+        flat = self.assign_flat(xy)
+        out = np.full((len(flat), 2), -1, dtype=np.int64)
+        ok = flat >= 0
+        out[ok, 0], out[ok, 1] = np.divmod(flat[ok], self.cols)
         return out
+
+    def assign_flat(self, xy: np.ndarray) -> np.ndarray:
+        """:meth:`assign` as flat cell indices ``row * cols + col``, -1 for none: shape (N,), int64.
+
+        The nearest lattice position of each point through :attr:`inverse_homography`, kept when the
+        point lies within ``tolerance_px`` of that cell's centre; one compiled loop (detection
+        assigns a frame's few dozen centres, where numpy's calls cost more than the arithmetic).
+        """
+        from ._kernels import pair_cells
+
+        xy = np.ascontiguousarray(np.asarray(xy, dtype=np.float64).reshape(-1, 2))
+        out = np.empty(len(xy), np.int64)
+        if len(xy):
+            pair_cells(xy, _IDENTITY, self.inverse_homography, self._flat_centres, self.rows, self.cols,
+                       float(self.tolerance_px) ** 2, out)
+        return out
+
+    @functools.cached_property
+    def _flat_centres(self) -> np.ndarray:
+        """The cell centres (rows * cols, 2), C-contiguous, as the compiled loop reads them."""
+        return np.ascontiguousarray(self.centres_px.reshape(-1, 2), dtype=np.float64)
 
     def cell_corners_px(self) -> np.ndarray:
         """Corners of every cell, shape (rows + 1, cols + 1, 2) ``(x, y)``.
