@@ -274,3 +274,16 @@ def short_breaks(kept, probed, rows, limit, gap, max_breaks, intact):  # pragma:
         if breaks:
             longest = max(longest, last - first)
         intact[i] = breaks <= max_breaks and longest <= limit[i]
+
+
+@njit(cache=True, nogil=True)
+def largest_shift(matrix, points):  # pragma: no cover - compiled
+    """The largest distance any of ``points`` (n, 2) moves under the 3x3 ``matrix``."""
+    out = 0.0
+    for i in range(points.shape[0]):
+        x, y = points[i, 0], points[i, 1]
+        w = matrix[2, 0] * x + matrix[2, 1] * y + matrix[2, 2]
+        dx = (matrix[0, 0] * x + matrix[0, 1] * y + matrix[0, 2]) / w - x
+        dy = (matrix[1, 0] * x + matrix[1, 1] * y + matrix[1, 2]) / w - y
+        out = max(out, math.sqrt(dx * dx + dy * dy))
+    return out

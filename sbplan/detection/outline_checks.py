@@ -475,9 +475,7 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
         step = float(median(v[1] - v[0]))
         if step <= 0:
             continue
-        opened = cv2.morphologyEx(patch, cv2.MORPH_OPEN, square)
-        thin = (cv2.subtract(patch, opened) > SCRATCH_LEVEL * step).astype(np.uint8)
-        inside = np.zeros_like(thin)
+        inside = np.zeros_like(patch)
         cv2.fillPoly(inside, [np.rint((outline - (x0, y0)) * 16).astype(np.int32)], 1, cv2.LINE_8, shift=4)
         if holes is not None and holes[i]:
             # (the hole's polygon runs through the ink's pixels around it: the ink's rim there, half
@@ -485,6 +483,15 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
             cv2.fillPoly(inside, [np.rint((h - (x0, y0)) * 16).astype(np.int32) for h in holes[i]], 0,
                          cv2.LINE_8, shift=4)
         core = cv2.erode(inside, deep)
+        # A thin bright pixel is brighter than the opening there by the level, and the opening is
+        # never below the window's darkest pixel: where no pixel of the core is that bright, no
+        # thin line reaches it (most broken symbols: an object's edge, not a scratch), and the
+        # opening is not needed.
+        # (the brightest core pixel by OpenCV's masked maximum: an empty core reads 0)
+        if not cv2.minMaxLoc(patch, core)[1] > cv2.minMaxLoc(patch)[0] + SCRATCH_LEVEL * step:
+            continue
+        opened = cv2.morphologyEx(patch, cv2.MORPH_OPEN, square)
+        thin = (cv2.subtract(patch, opened) > SCRATCH_LEVEL * step).astype(np.uint8)
         if not ((core > 0) & (thin > 0)).any():
             continue
         # (the holes, only for a symbol a thin line reaches into: without them its interior is

@@ -664,8 +664,14 @@ def movement_at_centre(matrix: np.ndarray, image_shape: tuple[int, int]) -> tupl
     h, w = int(image_shape[0]), int(image_shape[1])
     cx, cy = (w - 1) / 2.0, (h - 1) / 2.0
     # the centre and a pixel to its right and below it, moved: the local linear part at the centre
-    (mx, my), (ax, ay), (bx, by) = apply(np.asarray(matrix, np.float64),
-                                         np.array([[cx, cy], [cx + 1.0, cy], [cx, cy + 1.0]])).tolist()
+    # (three points in plain floats: numpy's calls would cost more than the arithmetic, twice a frame)
+    (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = np.asarray(matrix, np.float64).tolist()
+
+    def moved(x: float, y: float) -> tuple[float, float]:
+        d = m20 * x + m21 * y + m22
+        return (m00 * x + m01 * y + m02) / d, (m10 * x + m11 * y + m12) / d
+
+    (mx, my), (ax, ay), (bx, by) = moved(cx, cy), moved(cx + 1.0, cy), moved(cx, cy + 1.0)
     l00, l10, l01, l11 = ax - mx, ay - my, bx - mx, by - my
     rotation = math.degrees(math.atan2(l01 - l10, l00 + l11))
     scale = math.sqrt(abs(l00 * l11 - l01 * l10))
@@ -676,8 +682,7 @@ def _motion(matrix: np.ndarray, rms: float, used: int, model: str, image_shape, 
             ambiguous: bool) -> CameraMotion:
     shift, rotation, scale = movement_at_centre(matrix, image_shape)
     if grid is not None:
-        ref = grid.centres_px.reshape(-1, 2)
-        movement = float(_distances(apply(matrix, ref), ref).max())
+        movement = float(_compiled().largest_shift(np.ascontiguousarray(matrix, np.float64), grid._flat_centres))
     else:
         movement = float(math.hypot(*shift))
     if rms > MAX_RESIDUAL_PX:
