@@ -8,6 +8,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
+from hypothesis import given, settings, strategies as st
 
 from sbplan.detection import Detector
 from sbplan.detection.calibration import Calibration, calibrate
@@ -130,3 +131,19 @@ def test_samples_deviation_is_outline_deviation_from_given_samples():
     x, y = resample_xy(found, SAMPLES)
     dev2, shift2 = samples_deviation(x, y, dmap)
     assert np.allclose(dev, dev2) and np.allclose(shift, shift2)
+
+
+@settings(max_examples=100, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 30), s=st.integers(1, 70))
+def test_samples_deviation_is_the_rows_median_and_spread(seed, n, s):
+    # The compiled median and spread against numpy's, on a distance map's bilinear samples.
+    from sbplan.detection.outline_checks import samples_deviation
+
+    rng = np.random.default_rng(seed)
+    distance_map = rng.normal(0, 3, (40, 50)).astype(np.float32)
+    x, y = rng.uniform(-2, 52, (n, s)), rng.uniform(-2, 42, (n, s))
+    dev, shift = samples_deviation(x, y, distance_map)
+    d = cv2.remap(distance_map, x.astype(np.float32), y.astype(np.float32), cv2.INTER_LINEAR,
+                  borderMode=cv2.BORDER_REPLICATE)
+    assert np.array_equal(shift, np.median(d, axis=1).astype(np.float32))
+    assert np.array_equal(dev, np.abs(d - shift[:, None]).max(axis=1))
