@@ -110,3 +110,18 @@ def test_written_files_are_readable_like_any_other(tmp_path):
     path.chmod(0o600)
     write_json(path, {"a": 2})
     assert stat.S_IMODE(path.stat().st_mode) == 0o600, "a replaced file keeps its mode"
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_halve_is_opencv_area_averaging(seed):
+    # the exact bilinear halving gives INTER_AREA's values (it is taken for speed only), and
+    # sizes or types it does not fit go to INTER_AREA itself
+    from sbplan.imageio import halve
+
+    rng = np.random.default_rng(seed)
+    h, w = 2 * int(rng.integers(1, 200)), 2 * int(rng.integers(1, 200))
+    for image in (rng.integers(0, 256, (h, w), dtype=np.uint8), rng.integers(0, 256, (h + 1, w), dtype=np.uint8),
+                  rng.random((h, w + 1)).astype(np.float32), np.full((h, w), 255, np.uint8)):
+        want = cv2.resize(image, (image.shape[1] // 2, image.shape[0] // 2), interpolation=cv2.INTER_AREA)
+        got = halve(image)
+        assert got.dtype == image.dtype and np.array_equal(got, want)

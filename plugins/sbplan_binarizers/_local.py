@@ -12,7 +12,7 @@ import numpy as np
 
 from sbplan.contracts import Binarizer, option
 from sbplan.errors import InputError
-from sbplan.imageio import as_gray
+from sbplan.imageio import as_gray, halve
 from sbplan.morphology import open_square
 
 
@@ -166,8 +166,9 @@ def _reduce(gray: np.ndarray, f: int) -> np.ndarray:
     if f == 1:
         return gray
     if f == 4 and h % 4 == 0 and w % 4 == 0:
-        half = cv2.resize(gray, (w // 2, h // 2), interpolation=cv2.INTER_AREA)
-        return cv2.resize(half, (w // 4, h // 4), interpolation=cv2.INTER_AREA)
+        return halve(halve(gray))
+    if f == 2 and h % 2 == 0 and w % 2 == 0:
+        return halve(gray)
     return cv2.resize(gray, (max(1, w // f), max(1, h // f)), interpolation=cv2.INTER_AREA)
 
 

@@ -145,6 +145,7 @@ class Detector:
                                           [p[:, 0].min(), p[:, 1].max()], [p[:, 0].max(), p[:, 1].max()]]
                                          for p in cal.symbol_polygons]).reshape(-1, 4, 2)
         self._bands_cache: tuple[np.ndarray, RowBands | None] | None = None
+        self._stacked_cache: tuple[RowBands, np.ndarray] | None = None
         self.bands: RowBands | None = self._bands_for(np.eye(3))
         # registration: the camera's movement since calibration, estimated on every frame
         # (sbplan.detection.registration); the last estimate seeds the next frame's
@@ -456,14 +457,20 @@ class Detector:
                     idx, picked, shift = idx[straight], picked[straight], shift[straight]
                 if len(idx):
                     cell = flat[idx]
-                    points, inward = self.ref_points[cell], self.inward[cell]
-                    if moved:
-                        points, inward = motion.to_frame(points), motion.turn(inward)
-                    points = work.to_work(points)
-                    if origin is not None:
-                        points = points - origin
-                    if bands is not None:
-                        points = bands.to_stacked_outlines(points)
+                    inward = self.inward[cell]
+                    if not moved and origin is None and bands is not None:
+                        # (a camera that did not move: the reference points where the bands put them,
+                        # the same on every frame)
+                        points = self._stacked_reference_points(bands)[cell]
+                    else:
+                        points = self.ref_points[cell]
+                        if moved:
+                            points, inward = motion.to_frame(points), motion.turn(inward)
+                        points = work.to_work(points)
+                        if origin is not None:
+                            points = points - origin
+                        if bands is not None:
+                            points = bands.to_stacked_outlines(points)
                     # the binary image and the outlines are in working pixels
                     hidden = hidden_piece(_Picked(polygons, picked), shift / work.factor, points, inward,
                                           self.allowance[cell] * (motion.scale / work.factor), binary)
@@ -471,6 +478,14 @@ class Detector:
                         idx = idx[~hidden]
             ok[idx] = True
         return flat, ok, centres
+
+    def _stacked_reference_points(self, bands: RowBands) -> np.ndarray:
+        """Every cell's reference points (:attr:`ref_points`) in working pixels, stacked by ``bands``,
+        for an unmoved camera: kept while the bands are."""
+        cached = self._stacked_cache
+        if cached is None or cached[0] is not bands:
+            cached = self._stacked_cache = (bands, bands.to_stacked_outlines(self.work.to_work(self.ref_points)))
+        return cached[1]
 
     def _rescue(self, gray: np.ndarray, last: "_LastCells", motion: CameraMotion, only: np.ndarray | None) -> np.ndarray:
         """The cells (flat indices) matching did not find whose symbol's edge the grey image still

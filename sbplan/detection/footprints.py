@@ -67,6 +67,7 @@ import cv2
 import numpy as np
 
 from ..errors import InputError
+from ..imageio import halve
 from .outline_checks import EDGE_DEPTH_PX, EDGE_SAMPLES, edge_factors, edge_kept, edge_probes
 from .registration import THUMBNAIL_FACTOR, CameraMotion, apply
 
@@ -240,8 +241,7 @@ def _downsample(gray: np.ndarray, scale: int, shape: tuple[int, int]) -> np.ndar
     h, w = gray.shape
     if scale == 4 and h % 4 == 0 and w % 4 == 0:
         # two halvings: OpenCV's fast path for a factor of 2, the same block means
-        half = cv2.resize(gray, (w // 2, h // 2), interpolation=cv2.INTER_AREA)
-        small = cv2.resize(half, (w // 4, h // 4), interpolation=cv2.INTER_AREA)
+        small = halve(halve(gray))
     else:
         small = cv2.resize(gray, (shape[1], shape[0]), interpolation=cv2.INTER_AREA)
     return small.astype(np.float32)

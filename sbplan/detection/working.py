@@ -18,6 +18,8 @@ import math
 import cv2
 import numpy as np
 
+from ..imageio import halve
+
 __all__ = ["WorkScale", "work_factor", "WORK_SYMBOL_PX"]
 
 #: Symbols are worked on at about this size (the square root of their area, pixels) or more: the
@@ -71,7 +73,7 @@ class WorkScale:
         f, h, w = self.factor, part.shape[0], part.shape[1]
         while f > 1 and f % 2 == 0 and h % 2 == 0 and w % 2 == 0:
             h, w, f = h // 2, w // 2, f // 2
-            part = cv2.resize(part, (w, h), interpolation=cv2.INTER_AREA)
+            part = halve(part)
         if f > 1:
             part = cv2.resize(part, (max(1, w // f), max(1, h // f)), interpolation=cv2.INTER_AREA)
         return part
