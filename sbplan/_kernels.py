@@ -67,16 +67,22 @@ def resample_closed(points, starts, counts, fractions, out):  # pragma: no cover
     for k in range(starts.shape[0]):
         s = starts[k]
         c = counts[k]
+        # (sqrt, not math.hypot: hypot guards against overflow at several times the cost, and pixel
+        # coordinates do not overflow)
         length = 0.0
         for i in range(c):
             j = s + i + 1 if i + 1 < c else s
-            length += math.hypot(points[j, 0] - points[s + i, 0], points[j, 1] - points[s + i, 1])
+            dx = points[j, 0] - points[s + i, 0]
+            dy = points[j, 1] - points[s + i, 1]
+            length += math.sqrt(dx * dx + dy * dy)
         if not length > 0:
             return k
         # walk the edges once: the targets increase with j
         edge = 0
         at = 0.0  # arc length at the start of `edge`
-        step = math.hypot(points[s + 1, 0] - points[s, 0], points[s + 1, 1] - points[s, 1])
+        dx = points[s + 1, 0] - points[s, 0]
+        dy = points[s + 1, 1] - points[s, 1]
+        step = math.sqrt(dx * dx + dy * dy)
         for q in range(n):
             t = length * fractions[q]
             while edge < c - 1 and at + step <= t:
@@ -84,7 +90,9 @@ def resample_closed(points, starts, counts, fractions, out):  # pragma: no cover
                 at += step
                 a = s + edge
                 b = a + 1 if edge + 1 < c else s
-                step = math.hypot(points[b, 0] - points[a, 0], points[b, 1] - points[a, 1])
+                dx = points[b, 0] - points[a, 0]
+                dy = points[b, 1] - points[a, 1]
+                step = math.sqrt(dx * dx + dy * dy)
             a = s + edge
             b = a + 1 if edge + 1 < c else s
             if step > 0:

@@ -29,7 +29,7 @@ from .calibration.shapes import length_filter_steps
 from .obstacles import obstacles_from_outlines
 from .outline_checks import (EDGE_DEPTH_PX, EDGE_SAMPLES, EDGE_UNPROBED, scratch_points, INNER_MARGIN_PX, SAMPLES, edge_factors, edge_kept,
                              edge_probes, hidden_piece, intact_edges, reference_samples, samples_deviation,
-                             ink_piece_hidden, repaired_piece_hidden, scratches_repaired,
+                             ink_piece_hidden, repaired_piece_hidden, scratches_repaired, symbol_window, SymbolWindow,
                              signed_distance_map)
 from .registration import MIN_SYMBOLS, CameraMotion, apply, centre_window, grey_centres, refine, register_pairs
 from .result import CellDetection, Detection
@@ -146,6 +146,7 @@ class Detector:
                                          for p in cal.symbol_polygons]).reshape(-1, 4, 2)
         self._bands_cache: tuple[np.ndarray, RowBands | None] | None = None
         self._stacked_cache: tuple[RowBands, np.ndarray] | None = None
+        self._windows_at_rest: dict[int, SymbolWindow | None] = {}
         self.bands: RowBands | None = self._bands_for(np.eye(3))
         # registration: the camera's movement since calibration, estimated on every frame
         # (sbplan.detection.registration); the last estimate seeds the next frame's
@@ -544,10 +545,13 @@ class Detector:
                     outlines = [motion.to_frame(o) for o in outlines]
                     if holes is not None:
                         holes = [[motion.to_frame(h) for h in hs] for hs in holes]
+                # (a camera that did not move shows each symbol's window where the last frame did)
+                prepared = None if motion.moved else [self._window_at_rest(c, gray.shape) for c in need.tolist()]
                 last.repaired[need] = scratches_repaired(gray, outlines, ex, ey, self._edge_factors[need],
                                                          max_break=self._scratch_points[need],
                                                          gap=self._break_gap[need], holes=holes,
-                                                         piece_hidden=self._piece_hidden(need, motion, gray))
+                                                         piece_hidden=self._piece_hidden(need, motion, gray),
+                                                         prepared=prepared)
             rescued = rescued | (last.broken & (last.repaired == 1))
         matched_count = int(last.found.sum())
         plain = int(last.plain.sum())
@@ -562,6 +566,16 @@ class Detector:
                 "its threshold does not fit this floor (a broken or swapped matcher, a calibration made with "
                 "another one, or symbols worn past recognition); recalibrate with the matcher you detect with")
         return np.flatnonzero(rescued)
+
+    def _window_at_rest(self, cell: int, shape: tuple[int, int]) -> SymbolWindow | None:
+        """The scratch repair's window of ``cell``'s symbol for a camera that did not move
+        (:func:`~sbplan.detection.outline_checks.symbol_window`), made once."""
+        if cell not in self._windows_at_rest:
+            cal = self.calibration
+            self._windows_at_rest[cell] = symbol_window(
+                shape, cal.symbol_polygons[cell], self._edge_x[cell], self._edge_y[cell],  # type: ignore[index]
+                None if cal.symbol_holes is None else cal.symbol_holes[cell])
+        return self._windows_at_rest[cell]
 
     def _probes(self, cells: np.ndarray, motion: CameraMotion) -> tuple[np.ndarray, np.ndarray]:
         """The edge probes ``(x, y)`` of ``cells`` (flat indices) where ``motion`` puts them, (n, EDGE_SAMPLES) each."""

@@ -416,11 +416,58 @@ _SQUARE_5 = np.ones((5, 5), np.uint8)
 _SQUARE_7 = np.ones((7, 7), np.uint8)
 
 
+#: The grey opening's square (removes bright lines up to SCRATCH_WIDTH_PX wide) and the disc a
+#: thin line must reach into the symbol past its outline.
+_SCRATCH_SIDE = 2 * SCRATCH_WIDTH_PX + 1
+_DEEP = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * SCRATCH_DEPTH_PX + 1, 2 * SCRATCH_DEPTH_PX + 1))
+
+#: ``(x0, y0, inside, core)``: a symbol's window in the grey image (its corner, and its interior and
+#: the interior SCRATCH_DEPTH_PX in from the outline, uint8 masks of the window's shape).
+SymbolWindow = tuple[int, int, np.ndarray, np.ndarray]
+
+
+def symbol_window(shape: tuple[int, int], outline: np.ndarray, x: np.ndarray, y: np.ndarray,
+                  holes: list[np.ndarray] | None = None) -> SymbolWindow | None:
+    """The window :func:`scratches_repaired` reads around one symbol, and its masks.
+
+    Parameters
+    ----------
+    shape : (H, W)
+        The grey image's shape.
+    outline : ndarray (K, 2)
+        The symbol's reference outline ``(x, y)`` where the frame shows it.
+    x, y : ndarray (2, S)
+        Its edge probes (:func:`edge_probes`).
+    holes : list of ndarray (K, 2), optional
+        Its holes (see :func:`scratches_repaired`).
+
+    Returns
+    -------
+    ``(x0, y0, inside, core)``, or None where the image leaves too little room around the symbol.
+    """
+    h, w = shape
+    pad = _SCRATCH_SIDE + 2
+    x0 = max(int(np.floor(min(outline[:, 0].min(), x.min()))) - pad, 0)
+    y0 = max(int(np.floor(min(outline[:, 1].min(), y.min()))) - pad, 0)
+    x1 = min(int(np.ceil(max(outline[:, 0].max(), x.max()))) + pad + 1, w)
+    y1 = min(int(np.ceil(max(outline[:, 1].max(), y.max()))) + pad + 1, h)
+    if x1 - x0 < 2 * _SCRATCH_SIDE or y1 - y0 < 2 * _SCRATCH_SIDE:
+        return None
+    inside = np.zeros((y1 - y0, x1 - x0), np.uint8)
+    cv2.fillPoly(inside, [np.rint((outline - (x0, y0)) * 16).astype(np.int32)], 1, cv2.LINE_8, shift=4)
+    if holes:
+        # (the hole's polygon runs through the ink's pixels around it: the ink's rim there, half
+        # a pixel of antialiasing, goes with the hole)
+        cv2.fillPoly(inside, [np.rint((hole - (x0, y0)) * 16).astype(np.int32) for hole in holes], 0,
+                     cv2.LINE_8, shift=4)
+    return x0, y0, inside, cv2.erode(inside, _DEEP)
+
+
 def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarray, y: np.ndarray,
                        factors: np.ndarray, *, max_break: int | np.ndarray = 0,
                        gap: int | np.ndarray = 3, holes: list[list[np.ndarray]] | None = None,
-                       piece_hidden: Callable[[int, np.ndarray, tuple[int, int], float], bool] | None = None
-                       ) -> np.ndarray:
+                       piece_hidden: Callable[[int, np.ndarray, tuple[int, int], float], bool] | None = None,
+                       prepared: "Sequence[SymbolWindow | None] | None" = None) -> np.ndarray:
     """:func:`edges_intact` after the thin scratches across each symbol are painted over.
 
     Wear scratches a printed symbol: a thin line of floor colour crosses the ink from edge to edge,
@@ -451,38 +498,28 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
         y0)`` its corner in ``gray``, ``level`` the grey level halfway from its ink to its floor; True declares a piece of the symbol hidden after all (the edge
         probes skip acute tips, and forgive short breaks: an obstacle over a tip of a scratched
         symbol shows there only). See :func:`repaired_piece_hidden`.
+    prepared : list, optional
+        Each symbol's :func:`symbol_window` for these outlines, probes and holes, made earlier (a
+        camera that did not move shows every symbol where the last frame did); default made here.
 
     Returns
     -------
     ndarray (n,), bool
     """
     gray = _gray_u8(gray)
-    h, w = gray.shape
     out = np.zeros(len(outlines), bool)
-    side = 2 * SCRATCH_WIDTH_PX + 1
-    square = cv2.getStructuringElement(cv2.MORPH_RECT, (side, side))
-    deep = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * SCRATCH_DEPTH_PX + 1, 2 * SCRATCH_DEPTH_PX + 1))
+    square = cv2.getStructuringElement(cv2.MORPH_RECT, (_SCRATCH_SIDE, _SCRATCH_SIDE))
     for i, outline in enumerate(outlines):
-        pad = side + 2
-        x0 = max(int(np.floor(min(outline[:, 0].min(), x[i].min()))) - pad, 0)
-        y0 = max(int(np.floor(min(outline[:, 1].min(), y[i].min()))) - pad, 0)
-        x1 = min(int(np.ceil(max(outline[:, 0].max(), x[i].max()))) + pad + 1, w)
-        y1 = min(int(np.ceil(max(outline[:, 1].max(), y[i].max()))) + pad + 1, h)
-        if x1 - x0 < 2 * side or y1 - y0 < 2 * side:
+        window = prepared[i] if prepared is not None else \
+            symbol_window(gray.shape, outline, x[i], y[i], None if holes is None else holes[i])
+        if window is None:
             continue
-        patch = gray[y0:y1, x0:x1]
+        x0, y0, inside, core = window
+        patch = gray[y0:y0 + inside.shape[0], x0:x0 + inside.shape[1]]
         v = _edge_levels(patch, x[i:i + 1] - x0, y[i:i + 1] - y0)[0].astype(np.float32)
         step = float(median(v[1] - v[0]))
         if step <= 0:
             continue
-        inside = np.zeros_like(patch)
-        cv2.fillPoly(inside, [np.rint((outline - (x0, y0)) * 16).astype(np.int32)], 1, cv2.LINE_8, shift=4)
-        if holes is not None and holes[i]:
-            # (the hole's polygon runs through the ink's pixels around it: the ink's rim there, half
-            # a pixel of antialiasing, goes with the hole)
-            cv2.fillPoly(inside, [np.rint((h - (x0, y0)) * 16).astype(np.int32) for h in holes[i]], 0,
-                         cv2.LINE_8, shift=4)
-        core = cv2.erode(inside, deep)
         # A thin bright pixel is brighter than the opening there by the level, and the opening is
         # never below the window's darkest pixel: where no pixel of the core is that bright, no
         # thin line reaches it (most broken symbols: an object's edge, not a scratch), and the
@@ -498,8 +535,8 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
         # larger, so one that no line reaches stays so)
         wide = _holes(opened, inside, float(median(v[0])) + step / 2)
         if wide.any():
-            inside &= 1 - wide
-            core = cv2.erode(inside, deep)
+            inside = inside & (1 - wide)  # (a new array: a prepared window's stays as it is)
+            core = cv2.erode(inside, _DEEP)
             if not ((core > 0) & (thin > 0)).any():
                 continue
         # The floor in the symbol's own acute notches is a thin bright feature too (the opening
