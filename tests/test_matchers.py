@@ -189,3 +189,53 @@ def test_as_descriptors_checks_what_distance_matrix_gets():
     for bad, message in ((np.zeros((2, 2, 2)), "shape"), ([[1.0, np.inf]], "NaN or infinite"), ([["x"]], "numbers")):
         with pytest.raises(InputError, match=message):
             as_descriptors(bad, name="a")
+
+
+def _fourier_descriptors_numpy(outlines, *, samples=128, harmonics=20, mirror_terms=4):
+    """The descriptors as numpy expressions: what the compiled loop replaced, kept as its reference."""
+    from sbplan.polygons import resample_complex
+    from sbplan_matchers.fourier import _coefficients, _descriptor_plan
+
+    h, gather = _descriptor_plan(harmonics, mirror_terms, samples)
+    z = resample_complex(outlines, samples)
+    m = len(z)
+    if m == 0:
+        return np.zeros((0, harmonics + mirror_terms))
+    c = _coefficients(z, gather, samples if samples & (samples - 1) else 0)
+    mag = np.abs(c)
+    a1 = mag[:, 0]
+    if not a1.min() > 1e-12 * mag.max():
+        degenerate = ~(a1 > 1e-12 * mag.max(axis=1))
+        if degenerate.any():
+            raise ContourError(f"outlines[{int(np.flatnonzero(degenerate)[0])}]: degenerate outline (no "
+                               "first harmonic), it has no Fourier descriptor")
+    out = np.empty((m, h + mirror_terms))
+    np.divide(mag[:, 1:h + 1], a1[:, None], out=out[:, :h])
+    if mirror_terms == 0:
+        return out
+    c1 = c[:, :1]
+    q = c[:, h + 1:h + 1 + mirror_terms] * c[:, h + 1 + mirror_terms:] / (c1 * c1)
+    qmag = np.abs(q)
+    chir = out[:, h:]
+    chir[...] = 0.0
+    np.divide(q.imag, np.sqrt(qmag), out=chir, where=qmag > 0)
+    return out
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), count=st.integers(1, 12), samples=st.sampled_from([64, 100, 128]),
+       mirror_terms=st.integers(0, 4), flip=st.booleans())
+def test_compiled_descriptors_agree_with_numpy(seed, count, samples, mirror_terms, flip):
+    # The compiled loop against the numpy expressions it replaced, outlines of both senses.
+    from sbplan_matchers.fourier import fourier_descriptors
+
+    rng = np.random.default_rng(seed)
+    outlines = []
+    for _ in range(count):
+        n = int(rng.integers(3, 40))
+        t = np.sort(rng.uniform(0, 2 * np.pi, n)) + np.linspace(0, 1e-3, n)
+        p = np.c_[np.cos(t), np.sin(t)] * rng.uniform(0.3, 1.0, (n, 1)) * rng.uniform(5, 300) + rng.uniform(-500, 500, 2)
+        outlines.append(p[::-1] if flip and rng.random() < 0.5 else p)
+    got = fourier_descriptors(outlines, samples=samples, harmonics=16, mirror_terms=mirror_terms)
+    want = _fourier_descriptors_numpy(outlines, samples=samples, harmonics=16, mirror_terms=mirror_terms)
+    assert np.allclose(got, want, rtol=1e-9, atol=1e-12)

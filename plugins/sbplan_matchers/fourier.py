@@ -112,29 +112,21 @@ def fourier_descriptors(outlines: Sequence[np.ndarray], *, samples: int = 128, h
     m = len(z)
     if m == 0:
         return np.zeros((0, harmonics + mirror_terms))
-    # The descriptor is made of ratios of coefficients: dividing them all by a power-of-two
-    # number of samples is exact and would change no bit of it, so it is skipped.
-    c = _coefficients(z, gather, samples if samples & (samples - 1) else 0)
-    mag = np.abs(c)
-    a1 = mag[:, 0]
-    # every outline has a first harmonic when the weakest one beats the bound of the strongest
-    # outline; only otherwise is each outline's own bound worked out
-    if not a1.min() > 1e-12 * mag.max():
-        degenerate = ~(a1 > 1e-12 * mag.max(axis=1))
-        if degenerate.any():
-            raise ContourError(f"outlines[{int(np.flatnonzero(degenerate)[0])}]: degenerate outline (no "
-                               "first harmonic), it has no Fourier descriptor")
+    # One complex FFT gives every coefficient (see _coefficients); the rest is one compiled loop.
+    # The descriptor is made of ratios of coefficients, so they are not divided by the samples.
     out = np.empty((m, h + mirror_terms))
-    np.divide(mag[:, 1:h + 1], a1[:, None], out=out[:, :h])
-    if mirror_terms == 0:
-        return out
-    c1 = c[:, :1]
-    q = c[:, h + 1:h + 1 + mirror_terms] * c[:, h + 1 + mirror_terms:] / (c1 * c1)
-    qmag = np.abs(q)
-    chir = out[:, h:]
-    chir[...] = 0.0
-    np.divide(q.imag, np.sqrt(qmag), out=chir, where=qmag > 0)
+    degenerate = _compiled().descriptors(z, np.fft.fft(z, axis=1), gather, h, mirror_terms, out)
+    if degenerate >= 0:
+        raise ContourError(f"outlines[{degenerate}]: degenerate outline (no first harmonic), it has no "
+                           "Fourier descriptor")
     return out
+
+
+@functools.cache
+def _compiled():
+    """The compiled loop (``_kernels``), imported on first use: numba takes a moment."""
+    from . import _kernels
+    return _kernels
 
 
 @dataclass(kw_only=True, frozen=True)
