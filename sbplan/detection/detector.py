@@ -29,7 +29,7 @@ from .calibration.shapes import length_filter_steps
 from .obstacles import obstacles_from_outlines
 from .outline_checks import (EDGE_DEPTH_PX, EDGE_SAMPLES, EDGE_UNPROBED, scratch_points, INNER_MARGIN_PX, SAMPLES, edge_factors, edge_kept,
                              edge_probes, hidden_piece, intact_edges, reference_samples, samples_deviation,
-                             ink_piece_hidden, repaired_piece_hidden, scratches_repaired, symbol_window, SymbolWindow,
+                             ink_piece_hidden, repaired_piece_hidden, scratches_repaired,
                              signed_distance_map)
 from .registration import MIN_SYMBOLS, CameraMotion, apply, centre_window, grey_centres, refine, register_pairs
 from .result import CellDetection, Detection
@@ -145,8 +145,6 @@ class Detector:
                                           [p[:, 0].min(), p[:, 1].max()], [p[:, 0].max(), p[:, 1].max()]]
                                          for p in cal.symbol_polygons]).reshape(-1, 4, 2)
         self._bands_cache: tuple[np.ndarray, RowBands | None] | None = None
-        self._stacked_cache: tuple[RowBands, np.ndarray] | None = None
-        self._windows_at_rest: dict[int, SymbolWindow | None] = {}
         self.bands: RowBands | None = self._bands_for(np.eye(3))
         # registration: the camera's movement since calibration, estimated on every frame
         # (sbplan.detection.registration); the last estimate seeds the next frame's
@@ -458,20 +456,14 @@ class Detector:
                     idx, picked, shift = idx[straight], picked[straight], shift[straight]
                 if len(idx):
                     cell = flat[idx]
-                    inward = self.inward[cell]
-                    if not moved and origin is None and bands is not None:
-                        # (a camera that did not move: the reference points where the bands put them,
-                        # the same on every frame)
-                        points = self._stacked_reference_points(bands)[cell]
-                    else:
-                        points = self.ref_points[cell]
-                        if moved:
-                            points, inward = motion.to_frame(points), motion.turn(inward)
-                        points = work.to_work(points)
-                        if origin is not None:
-                            points = points - origin
-                        if bands is not None:
-                            points = bands.to_stacked_outlines(points)
+                    points, inward = self.ref_points[cell], self.inward[cell]
+                    if moved:
+                        points, inward = motion.to_frame(points), motion.turn(inward)
+                    points = work.to_work(points)
+                    if origin is not None:
+                        points = points - origin
+                    if bands is not None:
+                        points = bands.to_stacked_outlines(points)
                     # the binary image and the outlines are in working pixels
                     hidden = hidden_piece(_Picked(polygons, picked), shift / work.factor, points, inward,
                                           self.allowance[cell] * (motion.scale / work.factor), binary)
@@ -479,14 +471,6 @@ class Detector:
                         idx = idx[~hidden]
             ok[idx] = True
         return flat, ok, centres
-
-    def _stacked_reference_points(self, bands: RowBands) -> np.ndarray:
-        """Every cell's reference points (:attr:`ref_points`) in working pixels, stacked by ``bands``,
-        for an unmoved camera: kept while the bands are."""
-        cached = self._stacked_cache
-        if cached is None or cached[0] is not bands:
-            cached = self._stacked_cache = (bands, bands.to_stacked_outlines(self.work.to_work(self.ref_points)))
-        return cached[1]
 
     def _rescue(self, gray: np.ndarray, last: "_LastCells", motion: CameraMotion, only: np.ndarray | None) -> np.ndarray:
         """The cells (flat indices) matching did not find whose symbol's edge the grey image still
@@ -545,13 +529,10 @@ class Detector:
                     outlines = [motion.to_frame(o) for o in outlines]
                     if holes is not None:
                         holes = [[motion.to_frame(h) for h in hs] for hs in holes]
-                # (a camera that did not move shows each symbol's window where the last frame did)
-                prepared = None if motion.moved else [self._window_at_rest(c, gray.shape) for c in need.tolist()]
                 last.repaired[need] = scratches_repaired(gray, outlines, ex, ey, self._edge_factors[need],
                                                          max_break=self._scratch_points[need],
                                                          gap=self._break_gap[need], holes=holes,
-                                                         piece_hidden=self._piece_hidden(need, motion, gray),
-                                                         prepared=prepared)
+                                                         piece_hidden=self._piece_hidden(need, motion, gray))
             rescued = rescued | (last.broken & (last.repaired == 1))
         matched_count = int(last.found.sum())
         plain = int(last.plain.sum())
@@ -566,16 +547,6 @@ class Detector:
                 "its threshold does not fit this floor (a broken or swapped matcher, a calibration made with "
                 "another one, or symbols worn past recognition); recalibrate with the matcher you detect with")
         return np.flatnonzero(rescued)
-
-    def _window_at_rest(self, cell: int, shape: tuple[int, int]) -> SymbolWindow | None:
-        """The scratch repair's window of ``cell``'s symbol for a camera that did not move
-        (:func:`~sbplan.detection.outline_checks.symbol_window`), made once."""
-        if cell not in self._windows_at_rest:
-            cal = self.calibration
-            self._windows_at_rest[cell] = symbol_window(
-                shape, cal.symbol_polygons[cell], self._edge_x[cell], self._edge_y[cell],  # type: ignore[index]
-                None if cal.symbol_holes is None else cal.symbol_holes[cell])
-        return self._windows_at_rest[cell]
 
     def _probes(self, cells: np.ndarray, motion: CameraMotion) -> tuple[np.ndarray, np.ndarray]:
         """The edge probes ``(x, y)`` of ``cells`` (flat indices) where ``motion`` puts them, (n, EDGE_SAMPLES) each."""

@@ -466,8 +466,8 @@ def symbol_window(shape: tuple[int, int], outline: np.ndarray, x: np.ndarray, y:
 def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarray, y: np.ndarray,
                        factors: np.ndarray, *, max_break: int | np.ndarray = 0,
                        gap: int | np.ndarray = 3, holes: list[list[np.ndarray]] | None = None,
-                       piece_hidden: Callable[[int, np.ndarray, tuple[int, int], float], bool] | None = None,
-                       prepared: "Sequence[SymbolWindow | None] | None" = None) -> np.ndarray:
+                       piece_hidden: Callable[[int, np.ndarray, tuple[int, int], float], bool] | None = None
+                       ) -> np.ndarray:
     """:func:`edges_intact` after the thin scratches across each symbol are painted over.
 
     Wear scratches a printed symbol: a thin line of floor colour crosses the ink from edge to edge,
@@ -498,9 +498,6 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
         y0)`` its corner in ``gray``, ``level`` the grey level halfway from its ink to its floor; True declares a piece of the symbol hidden after all (the edge
         probes skip acute tips, and forgive short breaks: an obstacle over a tip of a scratched
         symbol shows there only). See :func:`repaired_piece_hidden`.
-    prepared : list, optional
-        Each symbol's :func:`symbol_window` for these outlines, probes and holes, made earlier (a
-        camera that did not move shows every symbol where the last frame did); default made here.
 
     Returns
     -------
@@ -510,8 +507,7 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
     out = np.zeros(len(outlines), bool)
     square = cv2.getStructuringElement(cv2.MORPH_RECT, (_SCRATCH_SIDE, _SCRATCH_SIDE))
     for i, outline in enumerate(outlines):
-        window = prepared[i] if prepared is not None else \
-            symbol_window(gray.shape, outline, x[i], y[i], None if holes is None else holes[i])
+        window = symbol_window(gray.shape, outline, x[i], y[i], None if holes is None else holes[i])
         if window is None:
             continue
         x0, y0, inside, core = window
@@ -535,7 +531,7 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
         # larger, so one that no line reaches stays so)
         wide = _holes(opened, inside, float(median(v[0])) + step / 2)
         if wide.any():
-            inside = inside & (1 - wide)  # (a new array: a prepared window's stays as it is)
+            inside &= 1 - wide
             core = cv2.erode(inside, _DEEP)
             if not ((core > 0) & (thin > 0)).any():
                 continue
