@@ -10,6 +10,7 @@ outline from its cell's reference outline, after removing the common shift, sepa
 from __future__ import annotations
 
 import bisect
+import math
 from collections.abc import Callable, Sequence
 
 import cv2
@@ -421,14 +422,14 @@ _SQUARE_7 = np.ones((7, 7), np.uint8)
 _SCRATCH_SIDE = 2 * SCRATCH_WIDTH_PX + 1
 _DEEP = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * SCRATCH_DEPTH_PX + 1, 2 * SCRATCH_DEPTH_PX + 1))
 
-#: ``(x0, y0, inside, core)``: a symbol's window in the grey image (its corner, and its interior and
-#: the interior SCRATCH_DEPTH_PX in from the outline, uint8 masks of the window's shape).
-SymbolWindow = tuple[int, int, np.ndarray, np.ndarray]
+#: ``(x0, y0, inside)``: a symbol's window in the grey image (its corner, and its interior as a
+#: uint8 mask of the window's shape).
+SymbolWindow = tuple[int, int, np.ndarray]
 
 
-def symbol_window(shape: tuple[int, int], outline: np.ndarray, x: np.ndarray, y: np.ndarray,
+def symbol_window(shape: tuple[int, int], outline: np.ndarray, probe_box: tuple[float, float, float, float],
                   holes: list[np.ndarray] | None = None) -> SymbolWindow | None:
-    """The window :func:`scratches_repaired` reads around one symbol, and its masks.
+    """The window :func:`scratches_repaired` reads around one symbol, and its interior.
 
     Parameters
     ----------
@@ -436,21 +437,23 @@ def symbol_window(shape: tuple[int, int], outline: np.ndarray, x: np.ndarray, y:
         The grey image's shape.
     outline : ndarray (K, 2)
         The symbol's reference outline ``(x, y)`` where the frame shows it.
-    x, y : ndarray (2, S)
-        Its edge probes (:func:`edge_probes`).
+    probe_box : (x_min, y_min, x_max, y_max)
+        The bounds of its edge probes (:func:`edge_probes`).
     holes : list of ndarray (K, 2), optional
         Its holes (see :func:`scratches_repaired`).
 
     Returns
     -------
-    ``(x0, y0, inside, core)``, or None where the image leaves too little room around the symbol.
+    ``(x0, y0, inside)``, or None where the image leaves too little room around the symbol.
     """
     h, w = shape
     pad = _SCRATCH_SIDE + 2
-    x0 = max(int(np.floor(min(outline[:, 0].min(), x.min()))) - pad, 0)
-    y0 = max(int(np.floor(min(outline[:, 1].min(), y.min()))) - pad, 0)
-    x1 = min(int(np.ceil(max(outline[:, 0].max(), x.max()))) + pad + 1, w)
-    y1 = min(int(np.ceil(max(outline[:, 1].max(), y.max()))) + pad + 1, h)
+    (ox0, oy0), (ox1, oy1) = outline.min(axis=0).tolist(), outline.max(axis=0).tolist()
+    px0, py0, px1, py1 = probe_box
+    x0 = max(math.floor(min(ox0, px0)) - pad, 0)
+    y0 = max(math.floor(min(oy0, py0)) - pad, 0)
+    x1 = min(math.ceil(max(ox1, px1)) + pad + 1, w)
+    y1 = min(math.ceil(max(oy1, py1)) + pad + 1, h)
     if x1 - x0 < 2 * _SCRATCH_SIDE or y1 - y0 < 2 * _SCRATCH_SIDE:
         return None
     inside = np.zeros((y1 - y0, x1 - x0), np.uint8)
@@ -460,7 +463,7 @@ def symbol_window(shape: tuple[int, int], outline: np.ndarray, x: np.ndarray, y:
         # a pixel of antialiasing, goes with the hole)
         cv2.fillPoly(inside, [np.rint((hole - (x0, y0)) * 16).astype(np.int32) for hole in holes], 0,
                      cv2.LINE_8, shift=4)
-    return x0, y0, inside, cv2.erode(inside, _DEEP)
+    return x0, y0, inside
 
 
 def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarray, y: np.ndarray,
@@ -506,22 +509,35 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
     gray = _gray_u8(gray)
     out = np.zeros(len(outlines), bool)
     square = cv2.getStructuringElement(cv2.MORPH_RECT, (_SCRATCH_SIDE, _SCRATCH_SIDE))
+    if not len(outlines):
+        return out
+    # (every symbol's probe bounds and edge levels at once: each window holds its probes with room
+    # to spare, so the levels read in the whole image are the window's)
+    n = len(outlines)
+    boxes = np.stack([x.reshape(n, -1).min(axis=1), y.reshape(n, -1).min(axis=1),
+                      x.reshape(n, -1).max(axis=1), y.reshape(n, -1).max(axis=1)], axis=1).tolist()
+    levels = _edge_levels(gray, x, y).astype(np.float32)
     for i, outline in enumerate(outlines):
-        window = symbol_window(gray.shape, outline, x[i], y[i], None if holes is None else holes[i])
+        window = symbol_window(gray.shape, outline, boxes[i], None if holes is None else holes[i])
         if window is None:
             continue
-        x0, y0, inside, core = window
+        x0, y0, inside = window
         patch = gray[y0:y0 + inside.shape[0], x0:x0 + inside.shape[1]]
-        v = _edge_levels(patch, x[i:i + 1] - x0, y[i:i + 1] - y0)[0].astype(np.float32)
+        v = levels[i]
         step = float(median(v[1] - v[0]))
         if step <= 0:
             continue
         # A thin bright pixel is brighter than the opening there by the level, and the opening is
         # never below the window's darkest pixel: where no pixel of the core is that bright, no
         # thin line reaches it (most broken symbols: an object's edge, not a scratch), and the
-        # opening is not needed.
-        # (the brightest core pixel by OpenCV's masked maximum: an empty core reads 0)
-        if not cv2.minMaxLoc(patch, core)[1] > cv2.minMaxLoc(patch)[0] + SCRATCH_LEVEL * step:
+        # opening is not needed. The core lies inside the outline: where no pixel inside is that
+        # bright, the core (an erosion) is not needed either.
+        # (the brightest pixel by OpenCV's masked maximum: an empty mask reads 0)
+        bright = cv2.minMaxLoc(patch)[0] + SCRATCH_LEVEL * step
+        if not cv2.minMaxLoc(patch, inside)[1] > bright:
+            continue
+        core = cv2.erode(inside, _DEEP)
+        if not cv2.minMaxLoc(patch, core)[1] > bright:
             continue
         opened = cv2.morphologyEx(patch, cv2.MORPH_OPEN, square)
         thin = (cv2.subtract(patch, opened) > SCRATCH_LEVEL * step).astype(np.uint8)
