@@ -3,6 +3,7 @@
 import cv2
 import numpy as np
 import pytest
+from hypothesis import given, settings, strategies as st
 
 import sbplan.registry as plugins
 from sbplan.contours import FREEMAN_STEPS, Contour
@@ -168,3 +169,58 @@ def test_douglas_peucker_relative_epsilon_simplifies_more():
     fine = plugins.approximator("douglas-peucker").approximate(c)
     coarse = plugins.approximator("douglas-peucker", relative=0.02).approximate(c)
     assert 3 <= len(coarse) < len(fine)
+
+
+# -- douglas-peucker's compiled loop gives OpenCV's vertices ------------------------------------------
+#
+# approximate_many runs its own loop over all contours (sbplan_approximators._kernels) instead of
+# one cv2.approxPolyDP call per contour: the same steps, so the same vertices, on real contours and
+# on arbitrary closed point lists (repeated points, reversals, collinear runs).
+
+
+def _dp_batch(point_lists, eps):
+    from sbplan_approximators._kernels import douglas_peucker
+    starts = np.zeros(len(point_lists) + 1, np.int64)
+    starts[1:] = np.cumsum([len(p) for p in point_lists])
+    vertices, counts = douglas_peucker(np.concatenate(point_lists).astype(np.int32), starts, eps * eps)
+    return np.split(vertices, np.cumsum(counts)[:-1])
+
+
+@pytest.mark.parametrize("condition", ["clean", "noise", "worn", "rotation"])
+def test_compiled_douglas_peucker_equals_opencv_on_a_rendered_floor(condition):
+    from sbplan.synth import FloorSpec, SceneSpec, render_scene
+    image, _ = render_scene(FloorSpec(width=640, height=480, cols=6, rows=4), SceneSpec(condition=condition), seed=3)
+    mask = cv2.adaptiveThreshold(image, 1, cv2.ADAPTIVE_THRESH_MEAN_C, cv2.THRESH_BINARY_INV, 31, 10)
+    found, _ = cv2.findContours(mask, cv2.RETR_LIST, cv2.CHAIN_APPROX_NONE)
+    found = [c.reshape(-1, 2) for c in found]
+    assert len(found) > 20
+    for eps in (0.5, 1.5, 3.0):
+        ours = _dp_batch(found, eps)
+        for c, got in zip(found, ours):
+            assert np.array_equal(got, cv2.approxPolyDP(c, eps, True).reshape(-1, 2))
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.tuples(st.integers(-40, 40), st.integers(-40, 40)), min_size=1, max_size=60),
+       st.sampled_from([0.0, 0.5, 1.0, 1.5, 2.0, 7.5]))
+def test_compiled_douglas_peucker_equals_opencv_on_any_closed_points(points, eps):
+    pts = np.array(points, np.int32)
+    try:
+        expected = cv2.approxPolyDP(pts, eps, True).reshape(-1, 2)
+    except cv2.error:  # (OpenCV refuses some degenerate lists: nothing to compare with)
+        return
+    assert np.array_equal(_dp_batch([pts], eps)[0], expected)
+
+
+def test_douglas_peucker_many_equals_one_by_one_on_extracted_contours():
+    img = blank(200)
+    cv2.circle(img, (60, 60), 35, 1, -1)
+    cv2.fillPoly(img, [np.array([[120, 20], [190, 40], [150, 120]], np.int32)], 1)
+    cv2.rectangle(img, (20, 130), (90, 180), 1, -1)
+    found, _ = cv2.findContours(img, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    contours = Contour.outers_unchecked([c.reshape(-1, 2) for c in found], np.zeros(0, np.uint8))
+    stage = plugins.registry().create("approximator", "douglas-peucker")
+    batch = stage.approximate_many(contours)
+    assert len(batch) == len(contours)
+    for k, c in enumerate(contours):
+        assert np.array_equal(batch[k], cv2.approxPolyDP(c.points, 1.5, True).reshape(-1, 2).astype(float))

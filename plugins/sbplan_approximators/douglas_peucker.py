@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -16,6 +17,13 @@ from sbplan.polygons import PolygonBatch
 from ._common import contour_points, three_vertices
 
 __all__ = ["DouglasPeucker"]
+
+
+@functools.cache
+def _compiled():
+    """The compiled loop, imported on first use (numba takes a moment; see ``_kernels``)."""
+    from . import _kernels
+    return _kernels
 
 
 @dataclass(kw_only=True, frozen=True)
@@ -70,19 +78,24 @@ class DouglasPeucker(ContourApproximator):
             return PolygonBatch.from_list([self.approximate(c) for c in contours])
         eps = float(self.epsilon)
         try:
-            # One OpenCV call per contour and nothing else: the checks per contour cost as much as
-            # approxPolyDP on a symbol's ~200 pixels. OpenCV's int32 points go in as they come
-            # (integer input gives the same vertices as float32 input, since DP only picks input
-            # points); anything else (not a Contour, int64 points) fails here and takes the path
-            # below, as does a contour too short to keep three vertices.
-            out = [cv2.approxPolyDP(c.points, eps, True) for c in contours]
-        except (AttributeError, cv2.error):
+            # One compiled loop over all contours (OpenCV's steps, the same vertices: see
+            # _kernels): a call of approxPolyDP per contour costs more than its arithmetic.
+            # OpenCV's int32 points go in as they come; anything else (not a Contour, other
+            # dtypes) takes the path below, as does a contour too short to keep three vertices.
+            points = [c.points for c in contours]
+            lengths = np.fromiter(map(len, points), np.int64, len(points))
+            flat = np.concatenate(points)
+        except (AttributeError, TypeError, ValueError):
             return self._approximate_checked(contours, eps)
-        counts = np.fromiter(map(len, out), np.int64, len(out))
+        if flat.dtype != np.int32 or flat.ndim != 2 or flat.shape[1] != 2 or lengths.min() < 3:
+            return self._approximate_checked(contours, eps)
+        starts = np.zeros(len(lengths) + 1, np.int64)
+        np.cumsum(lengths, out=starts[1:])
+        vertices, counts = _compiled().douglas_peucker(flat, starts, eps * eps)
         if counts.min() < 3:
             return self._approximate_checked(contours, eps)
         # vertices picked from pixel contours: finite, >= 3 per polygon, so no validation again
-        return PolygonBatch.unchecked(np.concatenate(out).reshape(-1, 2).astype(np.float64), counts)
+        return PolygonBatch.unchecked(vertices.astype(np.float64), counts)
 
     def _approximate_checked(self, contours, eps: float) -> PolygonBatch:
         """:meth:`approximate_many`'s general path: per-contour checks and conversions."""
