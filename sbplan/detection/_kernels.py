@@ -290,3 +290,64 @@ def largest_shift(matrix, points):  # pragma: no cover - compiled
         dy = (matrix[1, 0] * x + matrix[1, 1] * y + matrix[1, 2]) / w - y
         out = max(out, math.sqrt(dx * dx + dy * dy))
     return out
+
+
+@njit(cache=True, nogil=True)
+def _finite_rows(xy, k):  # pragma: no cover - compiled
+    """The least and the largest y of outline ``k`` of ``xy`` (K, N, 2), and whether all are finite."""
+    lo = np.inf
+    hi = -np.inf
+    for j in range(xy.shape[1]):
+        v = xy[k, j, 1]
+        if not math.isfinite(v):
+            return lo, hi, False
+        lo = min(lo, v)
+        hi = max(hi, v)
+    return lo, hi, True
+
+
+@njit(cache=True, nogil=True)
+def outlines_to_full(xy, shift, split):  # pragma: no cover - compiled
+    """:meth:`sbplan.detection.bands.RowBands.to_full_outlines`'s whole outlines, in place: each
+    outline of ``xy`` (K, N, 2) whose top and bottom rows take the same ``shift`` (per stacked row)
+    moves by it; ``split[k]`` is set for the others (not all finite, or across bands)."""
+    last = shift.shape[0] - 1
+    for k in range(xy.shape[0]):
+        lo, hi, finite = _finite_rows(xy, k)
+        if not finite:
+            split[k] = True
+            continue
+        top = shift[min(max(int(math.floor(lo + 0.5)), 0), last)]
+        if top != shift[min(max(int(math.floor(hi + 0.5)), 0), last)]:
+            split[k] = True
+            continue
+        for j in range(xy.shape[1]):
+            xy[k, j, 1] += top
+
+
+@njit(cache=True, nogil=True)
+def outlines_to_stacked(xy, starts, stops, offsets, split):  # pragma: no cover - compiled
+    """:meth:`sbplan.detection.bands.RowBands.to_stacked_outlines`'s whole outlines, in place: each
+    outline of ``xy`` (K, N, 2) lying in one band moves by that band's shift; ``split[k]`` is set
+    for the others (not all finite, across bands, or past a band's end)."""
+    for k in range(xy.shape[0]):
+        lo, hi, finite = _finite_rows(xy, k)
+        if not finite:
+            split[k] = True
+            continue
+        # the band of a row: the last that starts at or above it (numpy's searchsorted, 'right')
+        top = math.floor(lo + 0.5)
+        bottom = math.floor(hi + 0.5)
+        band = 0
+        last = 0
+        for b in range(starts.shape[0]):
+            if starts[b] <= top:
+                band = b
+            if starts[b] <= bottom:
+                last = b
+        shift = float(starts[band] - offsets[band])
+        if band != last or not hi - shift <= float(offsets[band] + stops[band] - starts[band]):
+            split[k] = True
+            continue
+        for j in range(xy.shape[1]):
+            xy[k, j, 1] -= shift

@@ -16,6 +16,7 @@ Coordinates: a stacked image has the full image's columns; row ``r`` of it is ro
 
 from __future__ import annotations
 
+import functools
 from typing import Sequence
 
 import numpy as np
@@ -139,20 +140,13 @@ class RowBands:
         lie in one band (every outline traced in the stacked image) moves by that band's shift as
         a whole; any other goes point by point."""
         xy = np.array(outlines, dtype=np.float64)
-        if xy.ndim != 3 or not xy.size:
+        if xy.ndim != 3 or not xy.size or xy.shape[-1] != 2:
             return self.to_full(xy.reshape(-1, 2)).reshape(xy.shape)
-        y = xy[..., 1]
-        last = len(self._shift) - 1
         # (a point's row is monotonic in y, and the shift is monotonic in the row: an outline
         # whose top and bottom rows move alike moves alike everywhere; one with a point that is
         # not finite goes point by point)
-        lo, hi = y.min(axis=1), y.max(axis=1)
-        finite = np.isfinite(lo) & np.isfinite(hi)
-        lo, hi = np.where(finite, lo, 0.0), np.where(finite, hi, 0.0)
-        top = self._shift[np.minimum(np.maximum(np.floor(lo + 0.5).astype(np.int64), 0), last)]
-        bottom = self._shift[np.minimum(np.maximum(np.floor(hi + 0.5).astype(np.int64), 0), last)]
-        y += top[:, None]
-        split = (top != bottom) | ~finite
+        split = np.zeros(len(xy), bool)
+        _compiled().outlines_to_full(xy, self._shift, split)
         if split.any():
             xy[split] = self.to_full(np.asarray(outlines, np.float64)[split].reshape(-1, 2)).reshape(xy[split].shape)
         return xy
@@ -162,21 +156,21 @@ class RowBands:
         all lie in one band moves by that band's shift as a whole (a few calls on K values where
         :meth:`to_stacked` searches K x N); any other goes point by point."""
         xy = np.array(outlines, dtype=np.float64)
-        if xy.ndim != 3 or not xy.size:
+        if xy.ndim != 3 or not xy.size or xy.shape[-1] != 2:
             return self.to_stacked(xy.reshape(-1, 2)).reshape(xy.shape)
-        y = xy[..., 1]
-        lo, hi = y.min(axis=1), y.max(axis=1)
-        # (np.maximum, not np.clip: np.clip's dispatch costs more than the search on a frame's outlines)
-        band = np.maximum(np.searchsorted(self.starts, np.floor(lo + 0.5), side="right") - 1, 0)
-        last = np.maximum(np.searchsorted(self.starts, np.floor(hi + 0.5), side="right") - 1, 0)
-        shift = (self.starts - self.offsets)[band]
-        whole = (band == last) & (hi - shift <= (self.offsets + self.stops - self.starts)[band])
-        y -= shift[:, None]
-        if not whole.all():
-            split = ~whole
+        split = np.zeros(len(xy), bool)
+        _compiled().outlines_to_stacked(xy, self.starts, self.stops, self.offsets, split)
+        if split.any():
             xy[split] = self.to_stacked(np.asarray(outlines, np.float64)[split].reshape(-1, 2)).reshape(xy[split].shape)
         return xy
 
     def __repr__(self) -> str:
         bands = ", ".join(f"{a}:{b}" for a, b in zip(self.starts.tolist(), self.stops.tolist()))
         return f"RowBands([{bands}] of {self.shape[0]} rows, {self.fraction:.0%})"
+
+
+@functools.cache
+def _compiled():
+    """The compiled kernels, imported on first use (see :mod:`sbplan.detection._kernels`)."""
+    from . import _kernels
+    return _kernels
