@@ -12,7 +12,8 @@ from hypothesis import given, settings, strategies as st
 
 from sbplan.detection import Detector
 from sbplan.detection.calibration import Calibration, calibrate
-from sbplan.detection.outline_checks import (INNER_MARGIN_PX, SAMPLES, hidden_piece, inner_tolerance, outline_deviation,
+from sbplan.detection.outline_checks import (INNER_MARGIN_PX, SAMPLES, hidden_and_near, hidden_piece,
+                                             inner_tolerance, outline_deviation,
                                              reference_samples, signed_distance_map, signed_distances_to_polygon)
 from sbplan.bench.evaluation import condition_scenes
 
@@ -74,6 +75,25 @@ def test_a_hidden_corner_of_the_stem_is_a_hidden_piece():
     assert _check(clipped)
     # the same corner allowed by a tolerance as large as the cut is accepted
     assert not _check(clipped, tolerance=6.0)
+
+
+def test_a_symbol_that_passes_within_the_near_band_of_the_limit_is_flagged_near_not_hidden():
+    # the stem's bottom 2 px short: hidden under a small allowance, near the limit under a larger
+    # one; the whole symbol is neither under that one; a hidden symbol is never also near
+    short = np.array([[20, 20], [70, 20], [52, 32], [60, 44], [34, 44], [34, 78], [20, 78]], float)
+    points, inward = reference_samples([SYMBOL])
+    dmap = signed_distance_map([SYMBOL], (100, 100))
+
+    def flags(found: np.ndarray, tolerance: float) -> tuple[bool, bool]:
+        _, shift = outline_deviation([found], dmap, return_shift=True)
+        allowance = np.full((1, SAMPLES), tolerance + INNER_MARGIN_PX)
+        hidden, near = hidden_and_near([found], shift, points, inward, allowance, _ink(found))
+        assert bool(hidden[0]) == bool(hidden_piece([found], shift, points, inward, allowance, _ink(found))[0])
+        return bool(hidden[0]), bool(near[0])
+
+    assert flags(short, 0.25) == (True, False)
+    assert flags(short, 1.0) == (False, True)
+    assert flags(SYMBOL, 1.0) == (False, False)
 
 
 def test_inner_tolerance_takes_each_points_largest_deviation_and_its_neighbours():
@@ -147,3 +167,17 @@ def test_samples_deviation_is_the_rows_median_and_spread(seed, n, s):
                   borderMode=cv2.BORDER_REPLICATE)
     assert np.array_equal(shift, np.median(d, axis=1).astype(np.float32))
     assert np.array_equal(dev, np.abs(d - shift[:, None]).max(axis=1))
+
+
+@pytest.mark.parametrize("condition", ["shift-8", "drift"])
+def test_the_sliver_stays_occupied_when_the_camera_moved(condition):
+    # The same 2.3 % sliver as bench_sliver's, after the camera moved (6.4, 4.8) px, or along a drift:
+    # the binary outline's pixel phase hides the bite (the reference outline passes the hidden-piece
+    # limit by half a pixel), and the grey edge, asked because it came that near, shows the break.
+    scenes = list(condition_scenes(condition, scenes=4, size=(1280, 960), grid=(10, 5), seed=0))
+    truth = scenes[3][2]
+    assert truth.cells[0, 8] == 1 and truth.overlap[0, 8] < 0.025
+    occupied = Detector(calibrate(scenes[0][0])).find_cells(scenes[3][1]).occupied
+    assert occupied[0, 8]
+    assert not occupied[truth.cells == 0].any()
+    assert occupied[truth.cells == 1].all()

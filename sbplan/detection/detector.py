@@ -27,8 +27,8 @@ from .bands import RowBands
 from .calibration.file import Calibration, load_calibration
 from .calibration.shapes import length_filter_steps
 from .obstacles import obstacles_from_outlines
-from .outline_checks import (EDGE_DEPTH_PX, EDGE_SAMPLES, EDGE_UNPROBED, scratch_points, INNER_MARGIN_PX, SAMPLES, edge_factors, edge_kept,
-                             edge_probes, hidden_piece, intact_edges, reference_samples, samples_deviation,
+from .outline_checks import (EDGE_DEPTH_PX, EDGE_SAMPLES, EDGE_UNPROBED, scratch_points, INNER_MARGIN_PX, NEAR_HIDDEN_PX, SAMPLES, edge_factors, edge_kept,
+                             edge_probes, hidden_and_near, intact_edges, reference_samples, samples_deviation,
                              ink_piece_hidden, repaired_piece_hidden, scratches_repaired,
                              signed_distance_map)
 from .registration import MIN_SYMBOLS, CameraMotion, apply, centre_window, grey_centres, refine, register_pairs
@@ -264,7 +264,7 @@ class Detector:
         self.motion = motion
         binary, polygons, hit, centres, areas, _, _ = frame
         last = _LastCells.empty(cal.grid.rows * cal.grid.cols)
-        last.take(*self._accepted(polygons, hit, centres, areas, binary, bands, motion), centres)
+        last.take(*self._accepted(polygons, hit, centres, areas, binary, bands, motion, gray=gray), centres)
         whole = self._rescue(gray, last, motion, None)
         lap("match")
         timings["total"] = (time.perf_counter() - t0) * 1e3
@@ -360,7 +360,7 @@ class Detector:
             binary, polygons, hit, centres, areas, _, _ = self._symbols_in(whole_image[y0:y1, x0:x1], crop_bands, lap,
                                                                              origin)
             cells, ok, cal_centres = self._accepted(polygons, hit, centres, areas, binary, crop_bands, motion,
-                                                    origin=origin, only=inside)
+                                                    origin=origin, only=inside, gray=gray)
             if ok.any() and not _boxes_within(self._boxes(polygons, hit[ok], work.to_work(centres[ok]) - origin,
                                                           crop_bands) + np.tile(origin, 2), zone):
                 return None  # an outline taken for a symbol crosses the crop's edge: not the whole frame's
@@ -403,14 +403,16 @@ class Detector:
 
     def _accepted(self, polygons: PolygonBatch, hit: np.ndarray, centres: np.ndarray, areas: np.ndarray,
                   binary: np.ndarray, bands: RowBands | None, motion: CameraMotion, *,
-                  origin: np.ndarray | None = None, only: np.ndarray | None = None
-                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                  origin: np.ndarray | None = None, only: np.ndarray | None = None,
+                  gray: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Which of the outlines the matcher took for the symbol (``polygons[hit]``, centres and
         areas in frame pixels) are their cells' symbols, whole: the cell (flat index, -1 off the
         grid) of each, whether it passed the outline checks, and its centre in the calibration's
         pixels. The binary image and the outlines are in working pixels, stacked by ``bands``, of
         a crop whose corner is ``origin`` (x, y) in the working image; with ``only`` (flat cells,
-        bool), the outlines of other cells are not checked (not passed)."""
+        bool), the outlines of other cells are not checked (not passed). With the frame ``gray``,
+        a symbol that comes near the hidden-piece limit is also asked whether its grey edge
+        shows all around (:data:`~sbplan.detection.outline_checks.NEAR_HIDDEN_PX`)."""
         cal, work = self.calibration, self.work
         flat = np.full(len(hit), -1, np.int64)
         ok = np.zeros(len(hit), bool)
@@ -465,8 +467,15 @@ class Detector:
                     if bands is not None:
                         points = bands.to_stacked_outlines(points)
                     # the binary image and the outlines are in working pixels
-                    hidden = hidden_piece(_Picked(polygons, picked), shift / work.factor, points, inward,
-                                          self.allowance[cell] * (motion.scale / work.factor), binary)
+                    allowance = self.allowance[cell] * (motion.scale / work.factor)
+                    second_opinion = gray is not None and self._edge_x is not None
+                    hidden, near = hidden_and_near(_Picked(polygons, picked), shift / work.factor, points, inward,
+                                                   allowance, binary, within=NEAR_HIDDEN_PX if second_opinion else 0.0)
+                    if second_opinion:
+                        # ... and one that passed near the limit, where its grey edge is broken:
+                        # a bite the binary outline's pixel phase hid
+                        if near.any():
+                            hidden[near] = ~self._edges_intact(gray, cell[near], motion)
                     if hidden.any():
                         idx = idx[~hidden]
             ok[idx] = True
@@ -547,6 +556,18 @@ class Detector:
                 "its threshold does not fit this floor (a broken or swapped matcher, a calibration made with "
                 "another one, or symbols worn past recognition); recalibrate with the matcher you detect with")
         return np.flatnonzero(rescued)
+
+    def _edges_intact(self, gray: np.ndarray, cells: np.ndarray, motion: CameraMotion) -> np.ndarray:
+        """Whether the grey edge of each of ``cells`` (flat indices) shows all around, as the edge
+        check of :meth:`_rescue` reads it (short breaks forgiven, points out of view not counted)."""
+        ex, ey = self._probes(cells, motion)
+        factors = self._edge_factors[cells]
+        kept = edge_kept(gray, ex, ey, factors)
+        probed = factors < EDGE_UNPROBED
+        cut = _out_of_view(ex, ey, gray.shape) if motion.moved else None
+        if cut is not None:
+            kept, probed = kept | cut, probed & ~cut
+        return intact_edges(kept, max_break=self._scratch_points[cells], gap=self._break_gap[cells], probed=probed)
 
     def _probes(self, cells: np.ndarray, motion: CameraMotion) -> tuple[np.ndarray, np.ndarray]:
         """The edge probes ``(x, y)`` of ``cells`` (flat indices) where ``motion`` puts them, (n, EDGE_SAMPLES) each."""
