@@ -122,3 +122,19 @@ def bounding_boxes(points, starts, counts, picked, out):  # pragma: no cover - c
         out[q, 1] = y0
         out[q, 2] = x1
         out[q, 3] = y1
+
+
+@njit(cache=True, nogil=True)
+def halve_u8(image, out):  # pragma: no cover - compiled
+    """``out`` (H / 2, W / 2) uint8: the rounded means of ``image``'s (H, W) 2 x 2 blocks,
+    ``(a + b + c + d + 2) >> 2`` as OpenCV's area resize computes them. Row pairs are read in order,
+    each once: on a frame that is not in the cache yet (a camera's), the read is most of the cost."""
+    h, w = out.shape
+    for r in range(h):
+        a = image[2 * r]
+        b = image[2 * r + 1]
+        o = out[r]
+        for c in range(w):
+            o[c] = (np.uint16(a[2 * c]) + np.uint16(a[2 * c + 1]) + np.uint16(b[2 * c]) + np.uint16(b[2 * c + 1])
+                    + np.uint16(2)) >> np.uint16(2)
+    return out

@@ -114,14 +114,18 @@ def test_written_files_are_readable_like_any_other(tmp_path):
 
 @pytest.mark.parametrize("seed", range(6))
 def test_halve_is_opencv_area_averaging(seed):
-    # the exact bilinear halving gives INTER_AREA's values (it is taken for speed only), and
-    # sizes or types it does not fit go to INTER_AREA itself
+    # the compiled halving gives INTER_AREA's values (it is taken for speed only), on whole images
+    # and on crops of larger ones, and sizes, types or layouts it does not fit go to INTER_AREA itself
     from sbplan.imageio import halve
 
     rng = np.random.default_rng(seed)
     h, w = 2 * int(rng.integers(1, 200)), 2 * int(rng.integers(1, 200))
+    big = rng.integers(0, 256, (h + 7, w + 9), dtype=np.uint8)
+    every = np.arange(256, dtype=np.uint8)[rng.permutation(256)].reshape(16, 16)  # every value, at every corner
     for image in (rng.integers(0, 256, (h, w), dtype=np.uint8), rng.integers(0, 256, (h + 1, w), dtype=np.uint8),
-                  rng.random((h, w + 1)).astype(np.float32), np.full((h, w), 255, np.uint8)):
+                  rng.random((h, w + 1)).astype(np.float32), np.full((h, w), 255, np.uint8),
+                  big[3:3 + h, 5:5 + w], big[:h, :w].T, every, np.kron(every, np.ones((2, 2), np.uint8))[1:-1, 1:-1],
+                  rng.integers(0, 256, (h, w, 3), dtype=np.uint8)):
         want = cv2.resize(image, (image.shape[1] // 2, image.shape[0] // 2), interpolation=cv2.INTER_AREA)
         got = halve(image)
         assert got.dtype == image.dtype and np.array_equal(got, want)
