@@ -563,11 +563,19 @@ class Detector:
         ex, ey = self._probes(cells, motion)
         factors = self._edge_factors[cells]
         kept = edge_kept(gray, ex, ey, factors)
+        # (an edge kept at every point is intact whatever the rules for breaks: most symbols)
+        intact = kept.all(axis=1)
+        if intact.all():
+            return intact
+        some = np.flatnonzero(~intact)
+        ex, ey, factors, kept = ex[some], ey[some], factors[some], kept[some]
         probed = factors < EDGE_UNPROBED
         cut = _out_of_view(ex, ey, gray.shape) if motion.moved else None
         if cut is not None:
             kept, probed = kept | cut, probed & ~cut
-        return intact_edges(kept, max_break=self._scratch_points[cells], gap=self._break_gap[cells], probed=probed)
+        intact[some] = intact_edges(kept, max_break=self._scratch_points[cells[some]], gap=self._break_gap[cells[some]],
+                                    probed=probed)
+        return intact
 
     def _probes(self, cells: np.ndarray, motion: CameraMotion) -> tuple[np.ndarray, np.ndarray]:
         """The edge probes ``(x, y)`` of ``cells`` (flat indices) where ``motion`` puts them, (n, EDGE_SAMPLES) each."""
