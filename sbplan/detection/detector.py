@@ -471,11 +471,10 @@ class Detector:
                     second_opinion = gray is not None and self._edge_x is not None
                     hidden, near = hidden_and_near(_Picked(polygons, picked), shift / work.factor, points, inward,
                                                    allowance, binary, within=NEAR_HIDDEN_PX if second_opinion else 0.0)
-                    if second_opinion:
+                    if gray is not None and near.any():
                         # ... and one that passed near the limit, where its grey edge is broken:
                         # a bite the binary outline's pixel phase hid
-                        if near.any():
-                            hidden[near] = ~self._edges_intact(gray, cell[near], motion)
+                        hidden[near] = ~self._edges_intact(gray, cell[near], motion)
                     if hidden.any():
                         idx = idx[~hidden]
             ok[idx] = True
@@ -564,7 +563,7 @@ class Detector:
         factors = self._edge_factors[cells]
         kept = edge_kept(gray, ex, ey, factors)
         # (an edge kept at every point is intact whatever the rules for breaks: most symbols)
-        intact = kept.all(axis=1)
+        intact = np.asarray(kept.all(axis=1))  # (n,) bool: the stubs allow a scalar
         if intact.all():
             return intact
         some = np.flatnonzero(~intact)

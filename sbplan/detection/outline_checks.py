@@ -231,7 +231,7 @@ def hidden_and_near(polygons: Sequence[np.ndarray], shifts: np.ndarray, points: 
         both = _shallow(np.concatenate([points, points], axis=1), np.concatenate([inward, inward], axis=1),
                         np.concatenate([depth, np.maximum(depth - within, 0.5)], axis=1), ink)
         s = points.shape[1]
-        shallow, near = both[:, :s], both[:, s:].any(axis=1)
+        shallow, near = both[:, :s], np.asarray(both[:, s:].any(axis=1))
     else:
         shallow, near = _shallow(points, inward, depth, ink), np.zeros(n, bool)
     if not shallow.any():
