@@ -1,13 +1,15 @@
-"""The polygon geometry's compiled loops (numba): centres of area and arc-length resampling of a
-whole :class:`~sbplan.polygons.PolygonBatch` at once.
+"""The core's compiled loops (numba): centres of area, arc-length resampling and bounding boxes
+of a whole :class:`~sbplan.polygons.PolygonBatch` at once, and halving an image.
 
-Detection runs both on every frame's few dozen outlines. As numpy expressions over the packed
-points each is a dozen whole-array passes (index arrays, ``reduceat``, ``interp``) whose cost is in
-the calls, not the arithmetic; one loop over the points costs a tenth.
+Detection runs them on every frame's few dozen outlines, and halves every frame. As numpy
+expressions over the packed points each is a dozen whole-array passes (index arrays,
+``reduceat``, ``interp``) whose cost is in the calls, not the arithmetic; one loop over the points
+costs a tenth.
 
 Imported on first use only, like :mod:`sbplan.detection._kernels` (see there). The callers
-validate; the kernels trust their inputs: ``points`` C-contiguous float64 (P, 2) of finite values,
-``starts`` and ``counts`` int64, every count >= 3.
+validate; the kernels trust their inputs: the polygon loops ``points`` C-contiguous float64 (P, 2)
+of finite values, ``starts`` and ``counts`` int64, every count >= 3; :func:`halve_u8` a 2-D uint8
+image of even sides whose rows are contiguous (any row stride).
 """
 
 from __future__ import annotations

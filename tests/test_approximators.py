@@ -224,3 +224,16 @@ def test_douglas_peucker_many_equals_one_by_one_on_extracted_contours():
     assert len(batch) == len(contours)
     for k, c in enumerate(contours):
         assert np.array_equal(batch[k], cv2.approxPolyDP(c.points, 1.5, True).reshape(-1, 2).astype(float))
+
+
+def test_douglas_peucker_many_takes_opencv_beyond_the_exact_span():
+    # coordinates so far apart that the compiled loop's whole numbers would overflow: OpenCV's call
+    rng = np.random.default_rng(5)
+    points = (rng.integers(0, 60_000, (7, 2))).astype(np.int32)
+    square = np.array([[x, 0] for x in range(10)] + [[9, y] for y in range(1, 10)] + [[x, 9] for x in range(8, -1, -1)]
+                      + [[0, y] for y in range(8, 0, -1)], np.int32)
+    contours = Contour.outers_unchecked([points, square], np.zeros(0, np.uint8))
+    batch = plugins.registry().create("approximator", "douglas-peucker").approximate_many(contours)
+    for k, c in enumerate(contours):
+        want = cv2.approxPolyDP(c.points, 1.5, True).reshape(-1, 2).astype(float)
+        assert len(want) >= 3 and np.array_equal(batch[k], want)

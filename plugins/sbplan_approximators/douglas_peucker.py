@@ -19,16 +19,31 @@ from ._common import contour_points, three_vertices
 __all__ = ["DouglasPeucker"]
 
 
+#: Coordinates beyond this span make the compiled loop's whole-number distances overflow int64
+#: (its squared distances times squared chord lengths): such contours take OpenCV's own call.
+_EXACT_SPAN = 30_000
+
+
 @functools.cache
 def _compiled():
-    """The compiled loop, imported on first use (numba takes a moment; see ``_kernels``)."""
+    """The compiled loop, imported on first use (numba takes a moment; see ``_kernels``), or None
+    when it does not give this OpenCV's vertices: it takes OpenCV 5's steps (the distance to the
+    chord's segment, opencv/opencv#28119), and older releases measure the distance to its line.
+    Checked once, on 300 seeded random closed point lists, against ``cv2.approxPolyDP``."""
     from . import _kernels
+    rng = np.random.default_rng(0)
+    for _ in range(300):
+        points = np.cumsum(rng.integers(-3, 4, (int(rng.integers(3, 40)), 2)), axis=0).astype(np.int32)
+        vertices, _ = _kernels.douglas_peucker(points, np.array([0, len(points)], np.int64), 2.25)
+        if not np.array_equal(vertices, cv2.approxPolyDP(points, 1.5, True).reshape(-1, 2)):
+            return None
     return _kernels
 
 
 @dataclass(kw_only=True, frozen=True)
 class DouglasPeucker(ContourApproximator):
-    """Douglas–Peucker approximation of the closed pixel contour by ``cv2.approxPolyDP``.
+    """Douglas–Peucker approximation of the closed pixel contour, ``cv2.approxPolyDP``'s vertices
+    (a frame's contours in one compiled loop with OpenCV's steps, where it gives OpenCV's answer).
 
     Every contour pixel lies within ``epsilon`` of the polygon. The default 1.5 px: the boundary
     pixels of a digitized straight edge stay within 1 px of the chord between its end pixels, so
@@ -87,11 +102,13 @@ class DouglasPeucker(ContourApproximator):
             flat = np.concatenate(points)
         except (AttributeError, TypeError, ValueError):
             return self._approximate_checked(contours, eps)
-        if flat.dtype != np.int32 or flat.ndim != 2 or flat.shape[1] != 2 or lengths.min() < 3:
+        kernels = _compiled()
+        if (kernels is None or flat.dtype != np.int32 or flat.ndim != 2 or flat.shape[1] != 2 or lengths.min() < 3
+                or int(flat.max()) - int(flat.min()) > _EXACT_SPAN):
             return self._approximate_checked(contours, eps)
         starts = np.zeros(len(lengths) + 1, np.int64)
         np.cumsum(lengths, out=starts[1:])
-        vertices, counts = _compiled().douglas_peucker(flat, starts, eps * eps)
+        vertices, counts = kernels.douglas_peucker(flat, starts, eps * eps)
         if counts.min() < 3:
             return self._approximate_checked(contours, eps)
         # vertices picked from pixel contours: finite, >= 3 per polygon, so no validation again

@@ -164,7 +164,8 @@ def inner_tolerance(deviations: np.ndarray, cells: np.ndarray, n_cells: int) -> 
     return np.where(np.isfinite(tol), tol, fill)
 
 
-#: How close (pixels) to :func:`hidden_piece`'s limit a found symbol's reference outline must come
+#: How close (working pixels: frame pixels at 1280x960, two at 4K) to :func:`hidden_piece`'s limit
+#: a found symbol's reference outline must come
 #: somewhere for the grey image to be asked too (:func:`hidden_and_near`; the detector then runs
 #: the edge check, :func:`intact_edges`, and a broken edge makes the symbol hidden). A symbol a few
 #: per cent hidden at a fractional camera shift can pass the binary test by half a pixel (the
@@ -219,8 +220,10 @@ def hidden_and_near(polygons: Sequence[np.ndarray], shifts: np.ndarray, points: 
                     allowance: np.ndarray, ink: np.ndarray, *, within: float = NEAR_HIDDEN_PX
                     ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`hidden_piece`, and which of the symbols it did not find hidden come within ``within``
-    pixels of its limit at some point (the ink does not reach that much less deep there; all False
-    for ``within`` 0). Same parameters. Two arrays of shape (n,), bool."""
+    pixels of its limit at some point: the ink does not reach that much less deep there (all False
+    for ``within`` 0). The second is the bilinear probe's answer alone, without the exact distance
+    the first takes for its few points: a selector for the grey edge check, erring towards near.
+    Same parameters. Two arrays of shape (n,), bool."""
     n = len(polygons)
     hidden = np.zeros(n, bool)
     if not n:
@@ -554,7 +557,8 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
     if not len(outlines):
         return out
     # (every symbol's probe bounds and edge levels at once: each window holds its probes with room
-    # to spare, so the levels read in the whole image are the window's)
+    # to spare, so the levels read in the whole image are the window's, for float32 probes as
+    # edge_probes makes them; float64 ones round differently once moved by the window's corner)
     n = len(outlines)
     boxes = np.stack([x.reshape(n, -1).min(axis=1), y.reshape(n, -1).min(axis=1),
                       x.reshape(n, -1).max(axis=1), y.reshape(n, -1).max(axis=1)], axis=1).tolist()
