@@ -500,20 +500,10 @@ class Detector:
         last.repaired[every] = -1
         missing = np.flatnonzero(todo)
         if len(missing):
-            ex, ey = self._probes(missing, motion)
-            factors = self._edge_factors[missing]
-            kept = edge_kept(gray, ex, ey, factors)
-            probed = factors < EDGE_UNPROBED
-            # A camera that moved can push a symbol at the frame's edge partly out of view: its
-            # outline no longer matches, and the frame has nothing to say where it left. Such a
-            # cell is judged by the part of its edge in view, when that is most of it.
-            cut = _out_of_view(ex, ey, gray.shape) if motion.moved else None
+            kept, probed, cut = self._edge_reads(gray, missing, motion)
             # (the scratch repair reads a whole symbol's window, and a partly seen symbol is no
             # proof that the matcher does not fit: those cells are neither broken nor plain)
-            whole = np.ones(len(missing), bool)
-            if cut is not None:
-                kept, probed = kept | cut, probed & ~cut
-                whole = ~np.asarray(cut.any(axis=1))  # (the stubs allow a scalar)
+            whole = np.ones(len(missing), bool) if cut is None else ~np.asarray(cut.any(axis=1))
             intact = intact_edges(kept, max_break=self._scratch_points[missing], gap=self._break_gap[missing],
                                   probed=probed)
             last.intact[missing] = intact
@@ -559,22 +549,31 @@ class Detector:
     def _edges_intact(self, gray: np.ndarray, cells: np.ndarray, motion: CameraMotion) -> np.ndarray:
         """Whether the grey edge of each of ``cells`` (flat indices) shows all around, as the edge
         check of :meth:`_rescue` reads it (short breaks forgiven, points out of view not counted)."""
+        kept, probed, _ = self._edge_reads(gray, cells, motion)
+        # (an edge kept at every point is intact whatever the rules for breaks: most symbols)
+        intact = np.asarray(kept.all(axis=1))  # (n,) bool: the stubs allow a scalar
+        if not intact.all():
+            some = np.flatnonzero(~intact)
+            intact[some] = intact_edges(kept[some], max_break=self._scratch_points[cells[some]],
+                                        gap=self._break_gap[cells[some]], probed=probed[some])
+        return intact
+
+    def _edge_reads(self, gray: np.ndarray, cells: np.ndarray, motion: CameraMotion
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """The edge check's reading of ``cells`` (flat indices) in the frame ``gray``: whether each
+        point kept its step (n, S), which points are probed (n, S), and the points out of view
+        (n, S), or None when all are in view. Points out of view count as kept and not probed."""
         ex, ey = self._probes(cells, motion)
         factors = self._edge_factors[cells]
         kept = edge_kept(gray, ex, ey, factors)
-        # (an edge kept at every point is intact whatever the rules for breaks: most symbols)
-        intact = np.asarray(kept.all(axis=1))  # (n,) bool: the stubs allow a scalar
-        if intact.all():
-            return intact
-        some = np.flatnonzero(~intact)
-        ex, ey, factors, kept = ex[some], ey[some], factors[some], kept[some]
         probed = factors < EDGE_UNPROBED
+        # A camera that moved can push a symbol at the frame's edge partly out of view: its
+        # outline no longer matches, and the frame has nothing to say where it left. Such a
+        # cell is judged by the part of its edge in view, when that is most of it.
         cut = _out_of_view(ex, ey, gray.shape) if motion.moved else None
         if cut is not None:
             kept, probed = kept | cut, probed & ~cut
-        intact[some] = intact_edges(kept, max_break=self._scratch_points[cells[some]], gap=self._break_gap[cells[some]],
-                                    probed=probed)
-        return intact
+        return kept, probed, cut
 
     def _probes(self, cells: np.ndarray, motion: CameraMotion) -> tuple[np.ndarray, np.ndarray]:
         """The edge probes ``(x, y)`` of ``cells`` (flat indices) where ``motion`` puts them, (n, EDGE_SAMPLES) each."""

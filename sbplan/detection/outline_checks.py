@@ -604,13 +604,14 @@ def scratches_repaired(gray: np.ndarray, outlines: list[np.ndarray], x: np.ndarr
         # ink)
         floor = 1 - inside
         own = cv2.dilate(floor - cv2.morphologyEx(floor, cv2.MORPH_OPEN, square), _SQUARE_3)
+        not_own = thin * (own == 0)
         # (the lines the test judges are the ones painted below: worked out once)
-        lines = _scratch_lines(thin * (own == 0), core)
+        lines = _scratch_lines(not_own, core)
         if not _scratch_like(patch, thin, inside, v, step, lines & inside):
             continue
         # A scratch is floor on the floor: past the symbol's outline it no longer shows. An
         # object's light stripe runs on over the object's own surface.
-        if _runs_on_outside(thin * (own == 0), lines & inside, inside):
+        if _runs_on_outside(not_own, lines & inside, inside):
             continue
         # The symbol is scratched: the thin bright lines that reach its interior are taken for
         # wear, with the pieces on their straight courses (a scratch leaves the ink in pieces: the
